@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Installs every Debian package lmf needs. Idempotent: quiet when all are present,
+# and runs `apt-get update` only when something is missing.
+set -euo pipefail
+
+packages=(
+  build-essential cmake ninja-build pkg-config git
+  liblcm-dev liblcm-bin
+  libeigen3-dev
+  libboost-dev libboost-program-options-dev
+  nlohmann-json3-dev
+  zlib1g-dev
+  libgtest-dev libgmock-dev
+  libbenchmark-dev
+  iproute2 util-linux
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  status=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)
+  [[ "$status" == "install ok installed" ]] || missing+=("$p")
+done
+[[ ${#missing[@]} -eq 0 ]] && exit 0
+
+echo "install-deps: installing ${missing[*]}"
+sudo_cmd=()
+[[ $(id -u) -eq 0 ]] || sudo_cmd=(sudo)
+export DEBIAN_FRONTEND=noninteractive
+"${sudo_cmd[@]}" apt-get update -qq
+"${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+echo "install-deps: done"
