@@ -1,0 +1,78 @@
+// CARMEN log files (plain or gzip): reading FLASER, ROBOTLASER1, ODOM and PARAM
+// lines, and writing FLASER logs (the simulator's output).
+//
+// Line formats (whitespace separated; trailing `timestamp host logger_timestamp`):
+//   FLASER n r1..rn x y theta odom_x odom_y odom_theta ts host lts
+//   ROBOTLASER1 type start_angle fov resolution max_range accuracy remission_mode
+//               n r1..rn m rem1..remm laser_x laser_y laser_theta robot_x robot_y
+//               robot_theta tv rv forward_safety side_safety turn_axis ts host lts
+//   ODOM x y theta tv rv accel ts host lts
+//   PARAM name value ts host lts
+// FLASER beams span 180° from -90°, step from beam_increment_for_180deg().
+// Scans carry the `odom_*` (FLASER) / `robot_*` (ROBOTLASER1) pose as LaserScan::odometry.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "lmf/geometry/pose2.hpp"
+#include "lmf/scan/laser_scan.hpp"
+
+namespace lmf::io {
+
+// A malformed line: what() names the file, the line number and what was wrong.
+class CarmenParseError : public std::runtime_error {
+ public:
+  CarmenParseError(const std::filesystem::path& file, std::size_t line, const std::string& what);
+  const std::filesystem::path& file() const { return file_; }
+  std::size_t line() const { return line_; }
+
+ private:
+  std::filesystem::path file_;
+  std::size_t line_;
+};
+
+struct OdometryRecord {
+  int64_t utime = 0;
+  Pose2 pose;  // x_OR
+};
+
+struct CarmenLog {
+  std::vector<LaserScan> scans;                  // FLASER and ROBOTLASER1, in file order
+  std::vector<OdometryRecord> odometry;          // ODOM lines
+  std::map<std::string, std::string> params;     // PARAM name -> value (last wins)
+  std::map<std::string, std::size_t> skipped;    // other line types -> count (comments excluded)
+};
+
+struct CarmenReadOptions {
+  // Readings at or above max_range_m - margin are "no return"; FLASER has no max
+  // range field, so it comes from here. 80 m covers the datasets' sensors.
+  double flaser_max_range_m = 81.0;
+};
+
+// Reads a whole log. Throws CarmenParseError on a malformed line (NaN, negative
+// or missing ranges, wrong counts, unparsable numbers) and std::runtime_error
+// when the file cannot be opened or decompressed.
+CarmenLog read_carmen_log(const std::filesystem::path& file, const CarmenReadOptions& options = {});
+
+// Parses one line (no trailing newline) into `log`; `file`/`line_number` only feed error messages.
+void parse_carmen_line(const std::string& text, const std::filesystem::path& file, std::size_t line_number,
+                       const CarmenReadOptions& options, CarmenLog& log);
+
+struct CarmenWriteOptions {
+  std::string host = "lmf-sim";
+  std::vector<std::string> header_comments;  // written as `# ...` lines first
+  bool gzip = false;                         // also implied by a `.gz` file name
+};
+
+// Writes scans as FLASER lines (pose fields: the scan's odometry pose for both
+// the laser and the odometry pose). Scans must have 180° geometry as above.
+// Throws std::invalid_argument for scans it cannot express, std::runtime_error on I/O errors.
+void write_carmen_log(const std::filesystem::path& file, const std::vector<LaserScan>& scans,
+                      const CarmenWriteOptions& options = {});
+
+}  // namespace lmf::io

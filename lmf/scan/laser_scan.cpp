@@ -1,0 +1,20 @@
+#include "lmf/scan/laser_scan.hpp"
+
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+namespace lmf {
+
+Eigen::Vector2d LaserScan::beam_point(std::size_t i) const {
+  const double a = beam_angle(i);
+  return {ranges_m.at(i) * std::cos(a), ranges_m.at(i) * std::sin(a)};
+}
+
+double beam_increment_for_180deg(std::size_t num_beams) {
+  if (num_beams < 2) throw std::invalid_argument("beam_increment_for_180deg: need at least 2 beams");
+  const double n = static_cast<double>(num_beams);
+  return num_beams % 2 == 1 ? std::numbers::pi / (n - 1.0) : std::numbers::pi / n;
+}
+
+}  // namespace lmf

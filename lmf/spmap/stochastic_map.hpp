@@ -1,0 +1,84 @@
+// A stochastic map (SPmap): entities with locations relative to a parent entity
+// (or to the map's root frame), and the joint covariance P of all perturbations.
+//
+// The robot local map uses it with root L (robot and segments children of the
+// root); the global map with root W (frames children of the root, segments
+// children of their submap frame). P is kept symmetric (both triangles valid).
+// Not thread-safe; all methods are synchronous.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "lmf/geometry/pose2.hpp"
+#include "lmf/spmap/entity.hpp"
+
+namespace lmf::spmap {
+
+using EntityId = std::int64_t;  // stable for the life of the map; never reused
+
+struct Entity {
+  EntityId id = 0;
+  EntityKind kind = EntityKind::kSegment;
+  Pose2 location;                   // x̂_PE relative to the parent (or the root)
+  double length_m = 0.0;            // segments only
+  std::optional<EntityId> parent;   // nullopt: relative to the root frame
+  Eigen::Index offset = 0;          // first row of p_E in P
+};
+
+class StochasticMap {
+ public:
+  // Appends an entity with zero covariance (rows/columns of P set to 0).
+  // Throws std::invalid_argument for an unknown parent.
+  EntityId add(EntityKind kind, const Pose2& location, std::optional<EntityId> parent = std::nullopt,
+               double length_m = 0.0);
+
+  // Removes the entity and its rows/columns of P. Throws std::invalid_argument
+  // if unknown or if other entities still have it as parent.
+  void remove(EntityId id);
+
+  bool contains(EntityId id) const;
+  const Entity& entity(EntityId id) const;  // throws std::invalid_argument if unknown
+  Entity& mutable_entity(EntityId id);      // location / length / parent edits
+  const std::vector<Entity>& entities() const { return entities_; }  // state order
+  std::vector<EntityId> children(std::optional<EntityId> parent) const;
+
+  Eigen::Index dimension() const { return P_.rows(); }
+  const Eigen::MatrixXd& covariance() const { return P_; }
+  Eigen::MatrixXd& mutable_covariance() { return P_; }
+  // The block of P between two entities (dof(a) x dof(b)).
+  Eigen::MatrixXd block(EntityId a, EntityId b) const;
+
+  // Location of the entity relative to the root frame (composed through parents).
+  Pose2 root_location(EntityId id) const;
+
+  // Replaces p_target by a linear combination of entity perturbations:
+  //   p_target ← Σ_i J_i p_{e_i}   (J_i: dof(target) x dof(e_i)),
+  // transforming P exactly (P ← A P Aᵀ with A the identity except target's rows).
+  // Used for the segment frame shift and for L_r ← L_r ⊕ x_R. The location of
+  // the target is not touched: callers set it to the matching estimate.
+  struct LinearTerm {
+    EntityId entity;
+    Eigen::MatrixXd J;
+  };
+  void replace_perturbation(EntityId target, const std::vector<LinearTerm>& terms);
+
+  // Appends a copy of `source` (same kind, location, parent, length) whose
+  // perturbation equals the source's: its rows of P copy the source's (perfect correlation).
+  EntityId add_copy(EntityId source);
+
+  // Resets to an empty map.
+  void clear();
+
+ private:
+  std::size_t index_of(EntityId id) const;
+
+  std::vector<Entity> entities_;
+  Eigen::MatrixXd P_;
+  EntityId next_id_ = 0;
+};
+
+}  // namespace lmf::spmap
