@@ -9,9 +9,9 @@ namespace lmf {
 
 struct ObservedSegment {
   // x_RE: the segment frame in the sensor (= robot) frame: origin at the
-  // midpoint, x along the segment, oriented so the scanner sees the wall on the
-  // segment's right-hand side (the sensor lies at negative y of the segment frame:
-  // a fixed side, so the two faces of a thin wall differ).
+  // midpoint, x along the segment in the scan's counter-clockwise order, so the
+  // sensor always lies on the segment's left (positive y of the segment frame):
+  // a fixed side, so the two faces of a thin wall are different features.
   Pose2 location;
   double length_m = 0.0;
   // Cov(p_E), p_E = (lateral, angular) perturbation in the segment frame (m, rad).
