@@ -54,7 +54,8 @@ struct CarmenReadOptions {
   double flaser_max_range_m = 81.0;
 };
 
-// Reads a whole log. Throws CarmenParseError on a malformed line (NaN, negative
+// Reads a whole log (plain or gzip; any line length). `#` comments and blank
+// lines are ignored; FLASER needs 2..4096 beams. Throws CarmenParseError on a malformed line (NaN, negative
 // or missing ranges, wrong counts, unparsable numbers) and std::runtime_error
 // when the file cannot be opened or decompressed.
 CarmenLog read_carmen_log(const std::filesystem::path& file, const CarmenReadOptions& options = {});
@@ -68,6 +69,14 @@ struct CarmenWriteOptions {
   std::vector<std::string> header_comments;  // written as `# ...` lines first
   bool gzip = false;                         // also implied by a `.gz` file name
 };
+
+// One FLASER line (no newline) for a scan: ranges with 3 decimals (mm), the
+// odometry pose with 6 decimals as both the laser and the odometry pose, and the
+// time stamp in seconds with 6 decimals (exact microseconds) as both time stamps.
+// Throws std::invalid_argument for a scan FLASER cannot express (not 180° from
+// -90°, beam count outside 2..4096, negative or non-finite ranges/pose) or a host
+// that is not one word.
+std::string carmen_flaser_line(const LaserScan& scan, const std::string& host);
 
 // Writes scans as FLASER lines (pose fields: the scan's odometry pose for both
 // the laser and the odometry pose). Scans must have 180° geometry as above.
