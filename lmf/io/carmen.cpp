@@ -1,17 +1,14 @@
 #include "lmf/io/carmen.hpp"
 
-#include <zlib.h>
-
-#include <algorithm>
-#include <cerrno>
 #include <charconv>
-#include <cinttypes>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <numbers>
+#include <optional>
 #include <string_view>
 #include <system_error>
+
+#include "lmf/io/text_file.hpp"
 
 namespace lmf::io {
 namespace {
@@ -20,18 +17,6 @@ constexpr std::size_t kMaxBeams = 4096;
 
 std::string error_text(const std::filesystem::path& file, std::size_t line, const std::string& what) {
   return file.string() + ":" + std::to_string(line) + ": " + what;
-}
-
-std::vector<std::string_view> split_fields(std::string_view text) {
-  std::vector<std::string_view> fields;
-  std::size_t i = 0;
-  while (i < text.size()) {
-    while (i < text.size() && (text[i] == ' ' || text[i] == '\t' || text[i] == '\r')) ++i;
-    const std::size_t start = i;
-    while (i < text.size() && text[i] != ' ' && text[i] != '\t' && text[i] != '\r') ++i;
-    if (i > start) fields.push_back(text.substr(start, i - start));
-  }
-  return fields;
 }
 
 // Parses the fields of one line, naming the line in every error.
@@ -46,14 +31,9 @@ class LineParser {
 
   // Any double, NaN and infinities included (callers decide what is allowed).
   double raw_number(std::string_view field, const std::string& name) const {
-    double v = 0.0;
-    const char* begin = field.data();
-    const char* end = begin + field.size();
-    if (!field.empty() && *begin == '+') ++begin;  // from_chars rejects a leading '+'
-    const auto [ptr, ec] = std::from_chars(begin, end, v);
-    if (ec == std::errc::result_out_of_range) fail(name + " is out of range: '" + std::string(field) + "'");
-    if (ec != std::errc() || ptr != end) fail(name + " is not a number: '" + std::string(field) + "'");
-    return v;
+    const std::optional<double> v = parse_double(field);
+    if (!v) fail(name + " is not a number: '" + std::string(field) + "'");
+    return *v;
   }
 
   double finite(std::string_view field, const std::string& name) const {
@@ -179,18 +159,6 @@ OdometryRecord parse_odom(const std::vector<std::string_view>& f, const LinePars
   return r;
 }
 
-// The time stamp as seconds with exactly six decimals, from the integer microseconds.
-std::string seconds_text(int64_t utime) {
-  const bool negative = utime < 0;
-  const uint64_t magnitude = negative ? 0 - static_cast<uint64_t>(utime) : static_cast<uint64_t>(utime);
-  char buf[48];
-  std::snprintf(buf, sizeof buf, "%s%" PRIu64 ".%06" PRIu64, negative ? "-" : "", magnitude / 1000000u,
-                magnitude % 1000000u);
-  return buf;
-}
-
-bool ends_with_gz(const std::filesystem::path& file) { return file.extension() == ".gz"; }
-
 }  // namespace
 
 CarmenParseError::CarmenParseError(const std::filesystem::path& file, std::size_t line, const std::string& what)
@@ -222,51 +190,10 @@ CarmenLog read_carmen_log(const std::filesystem::path& file, const CarmenReadOpt
   if (!(options.flaser_max_range_m > 0.0)) {
     throw std::invalid_argument("read_carmen_log: flaser_max_range_m must be positive");
   }
-  errno = 0;
-  // gzopen reads plain files transparently, so one path serves .log and .log.gz.
-  gzFile in = gzopen(file.c_str(), "rb");
-  if (in == nullptr) {
-    throw std::runtime_error("cannot open " + file.string() + ": " +
-                             (errno != 0 ? std::strerror(errno) : "out of memory"));
-  }
-  struct Closer {
-    gzFile f;
-    ~Closer() { gzclose(f); }
-  } closer{in};
-  gzbuffer(in, 1u << 17);
-
   CarmenLog log;
-  std::string line;
-  std::size_t line_number = 0;
-  char chunk[1 << 16];
-  bool more = true;
-  while (more) {
-    // Lines can be far longer than one chunk (4096 beams): append until '\n'.
-    line.clear();
-    bool got_any = false;
-    for (;;) {
-      if (gzgets(in, chunk, static_cast<int>(sizeof chunk)) == nullptr) {
-        more = false;
-        break;
-      }
-      got_any = true;
-      const std::size_t len = std::strlen(chunk);
-      line.append(chunk, len);
-      if (len > 0 && chunk[len - 1] == '\n') break;
-    }
-    if (!more) {
-      int err = Z_OK;
-      const char* message = gzerror(in, &err);
-      if (err != Z_OK && err != Z_STREAM_END) {
-        throw std::runtime_error("error reading " + file.string() + " after line " + std::to_string(line_number) +
-                                 ": " + (err == Z_ERRNO ? std::strerror(errno) : message));
-      }
-    }
-    if (!got_any) break;
-    ++line_number;
-    while (!line.empty() && (line.back() == '\n' || line.back() == '\r')) line.pop_back();
-    parse_carmen_line(line, file, line_number, options, log);
-  }
+  for_each_line(file, [&](const std::string& text, std::size_t line_number) {
+    parse_carmen_line(text, file, line_number, options, log);
+  });
   return log;
 }
 
@@ -326,28 +253,7 @@ void write_carmen_log(const std::filesystem::path& file, const std::vector<Laser
     }
     text += '\n';
   }
-  const bool gzip = options.gzip || ends_with_gz(file);
-  errno = 0;
-  // "T": zlib's transparent (uncompressed) writing, so both cases share one path.
-  gzFile out = gzopen(file.c_str(), gzip ? "wb6" : "wbT");
-  if (out == nullptr) {
-    throw std::runtime_error("cannot open " + file.string() + " for writing: " +
-                             (errno != 0 ? std::strerror(errno) : "out of memory"));
-  }
-  std::size_t done = 0;
-  while (done < text.size()) {
-    const std::size_t len = std::min<std::size_t>(text.size() - done, 1u << 20);
-    const int written = gzwrite(out, text.data() + done, static_cast<unsigned>(len));
-    if (written <= 0) {
-      int err = Z_OK;
-      const std::string message = gzerror(out, &err);
-      gzclose(out);
-      throw std::runtime_error("error writing " + file.string() + ": " +
-                               (err == Z_ERRNO ? std::strerror(errno) : message));
-    }
-    done += static_cast<std::size_t>(written);
-  }
-  if (gzclose(out) != Z_OK) throw std::runtime_error("error closing " + file.string());
+  write_text_file(file, text, options.gzip);
 }
 
 }  // namespace lmf::io
