@@ -1,0 +1,105 @@
+// The message bus of an lmf process: a thin owner of one lcm::LCM (STYLE
+// "bus behind an interface"). Process logic takes a Bus&, so a test wires
+// agent, server and player to ONE Bus built on "memq://" (memq is private to
+// its LCM instance), while the processes use the network URL (by default
+// LCM_DEFAULT_URL, else LCM's udpm://239.255.76.67:7667?ttl=0), and a monitor
+// can read an lcm-logger file with "file:///path/to/log?speed=0".
+//
+// Handlers run inside handle_pending(), on the caller's thread. Nothing thrown
+// by a handler crosses LCM's C callback: it is caught, counted
+// (handler_error), logged to stderr and the message dropped.
+//
+// Threading: use a Bus from one thread (the event loop's). Do not subscribe or
+// unsubscribe from inside a handler.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <lcm/lcm-cpp.hpp>
+
+#include "runtime/convert.hpp"
+#include "runtime/rejection.hpp"
+
+namespace lmf::runtime {
+
+class Bus {
+ public:
+  // Raw bytes of one message on `channel`; valid only during the call.
+  using RawHandler = std::function<void(const std::string& channel, const void* data, std::size_t size)>;
+
+  // Empty url: LCM_DEFAULT_URL or LCM's default. Check good() afterwards: a bad
+  // URL or a network without a multicast route gives a Bus that is not good.
+  explicit Bus(const std::string& url = "");
+  ~Bus();
+  Bus(const Bus&) = delete;
+  Bus& operator=(const Bus&) = delete;
+
+  bool good() const { return lcm_.good(); }
+  const std::string& url() const { return url_; }
+
+  // Encodes and sends; false (and counted in publish_failures()) if LCM refused.
+  template <class Msg>
+  bool publish(const std::string& channel, const Msg& msg) {
+    return publish_raw(channel, encode_message(msg));
+  }
+  bool publish_raw(const std::string& channel, const std::vector<std::uint8_t>& bytes);
+
+  // Subscribes to every channel matching the LCM regex `channel` (anchored).
+  // The returned id stays valid until unsubscribe() or the Bus dies.
+  int subscribe(const std::string& channel, RawHandler handler);
+
+  // Subscribes and decodes into Msg before calling `on_message`; a message
+  // that does not decode is recorded in rejects() and logged, never delivered.
+  template <class Msg>
+  int subscribe_message(const std::string& channel,
+                        std::function<void(const std::string& channel, const Msg& msg)> on_message,
+                        const DecodeLimits& limits = {}) {
+    return subscribe(channel, [this, on_message = std::move(on_message), limits](
+                                  const std::string& ch, const void* data, std::size_t size) {
+      auto msg = decode_message<Msg>(data, size, limits);
+      if (!msg) {
+        rejects_.record(msg.rejection(), ch);
+        return;
+      }
+      on_message(ch, msg.value());
+    });
+  }
+
+  void unsubscribe(int subscription_id);
+
+  // Dispatches the messages already queued, never blocking; stops after
+  // `max_messages`. Returns how many were dispatched (negative on an LCM error).
+  int handle_pending(int max_messages = 1000);
+
+  // The descriptor that becomes readable when a message is queued (a pipe for
+  // memq:// in LCM 1.3.1); -1 if the provider has none. Owned by LCM.
+  int fileno();
+
+  // Decode failures from subscribe_message and handler errors, by reason.
+  RejectCounter& rejects() { return rejects_; }
+  const RejectCounter& rejects() const { return rejects_; }
+  std::int64_t handler_errors() const { return rejects_.count(RejectReason::kHandlerError); }
+  std::int64_t publish_failures() const { return publish_failures_; }
+
+  // The underlying LCM instance, for what the Bus does not wrap (e.g. queue capacity).
+  lcm::LCM& lcm() { return lcm_; }
+
+ private:
+  struct Subscription;
+  static void dispatch(const lcm::ReceiveBuffer* buffer, const std::string& channel, Subscription* subscription);
+
+  std::string url_;
+  lcm::LCM lcm_;
+  std::vector<std::unique_ptr<Subscription>> subscriptions_;
+  int next_id_ = 1;
+  RejectCounter rejects_;
+  std::int64_t publish_failures_ = 0;
+};
+
+}  // namespace lmf::runtime

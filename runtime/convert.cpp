@@ -1,0 +1,562 @@
+#include "runtime/convert.hpp"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <numbers>
+#include <set>
+#include <string>
+
+#include <Eigen/Cholesky>
+
+namespace lmf::runtime {
+
+namespace {
+
+using std::to_string;
+
+Rejection reject(RejectReason reason, std::string detail) { return Rejection{reason, std::move(detail)}; }
+
+// Angles on the wire are in (-pi, pi]; float fields get float rounding slack.
+constexpr double kAngleSlackDouble = 1e-9;
+constexpr double kAngleSlackFloat = 1e-6;
+
+std::int64_t packed_size(std::int64_t n) { return n * (n + 1) / 2; }
+
+// ---- wire prechecks ----------------------------------------------------------
+// Offsets are measured on the generated encoder (an empty message's size), so
+// adding a field in front of an array keeps them right; the round-trip tests
+// fail if a .lcm change breaks an assumption stated below.
+
+std::int32_t read_i32_be(const std::uint8_t* p) {
+  const std::uint32_t v = (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) |
+                          (std::uint32_t{p[2]} << 8) | std::uint32_t{p[3]};
+  return static_cast<std::int32_t>(v);
+}
+
+template <class Msg>
+std::size_t empty_size() {
+  static const std::size_t size = static_cast<std::size_t>(Msg{}.getEncodedSize());
+  return size;
+}
+
+// A count read at `offset` must be >= 0, within `limit` (oversized) and, with
+// `element_bytes` per element, fit in the buffer (else decode_failed).
+std::optional<Rejection> check_count(const std::uint8_t* bytes, std::size_t size, std::size_t offset,
+                                     std::size_t element_bytes, std::int64_t limit, std::string_view what) {
+  if (offset + 4 > size) return reject(RejectReason::kDecodeFailed, std::string(what) + ": truncated");
+  const std::int32_t count = read_i32_be(bytes + offset);
+  if (count < 0) return reject(RejectReason::kDecodeFailed, std::string(what) + ": negative count " + to_string(count));
+  if (count > limit) {
+    return reject(RejectReason::kOversized, std::string(what) + ": " + to_string(count) + " > limit " + to_string(limit));
+  }
+  if (static_cast<std::size_t>(count) * element_bytes > size - offset - 4) {
+    return reject(RejectReason::kDecodeFailed,
+                  std::string(what) + ": count " + to_string(count) + " exceeds the " + to_string(size) + "-byte buffer");
+  }
+  return std::nullopt;
+}
+
+// Assumption: the message ends with `int32_t num; T array[num]`.
+template <class Msg>
+std::optional<Rejection> check_trailing_array(const std::uint8_t* bytes, std::size_t size, std::size_t element_bytes,
+                                              std::int64_t limit, std::string_view what) {
+  const std::size_t base = empty_size<Msg>();
+  if (size < base) return reject(RejectReason::kDecodeFailed, std::string(what) + ": truncated");
+  return check_count(bytes, size, base - 4, element_bytes, limit, what);
+}
+
+// Fixed-size messages need no precheck.
+std::optional<Rejection> precheck(std::type_identity<lmf::sighting_t>, const std::uint8_t*, std::size_t,
+                                  const DecodeLimits&) { return std::nullopt; }
+std::optional<Rejection> precheck(std::type_identity<lmf::scan_ack_t>, const std::uint8_t*, std::size_t,
+                                  const DecodeLimits&) { return std::nullopt; }
+std::optional<Rejection> precheck(std::type_identity<lmf::local_map_ack_t>, const std::uint8_t*, std::size_t,
+                                  const DecodeLimits&) { return std::nullopt; }
+std::optional<Rejection> precheck(std::type_identity<lmf::agent_status_t>, const std::uint8_t*, std::size_t,
+                                  const DecodeLimits&) { return std::nullopt; }
+
+std::optional<Rejection> precheck(std::type_identity<lmf::laser_scan_t>, const std::uint8_t* bytes, std::size_t size,
+                                  const DecodeLimits& limits) {
+  return check_trailing_array<lmf::laser_scan_t>(bytes, size, sizeof(float), limits.max_beams, "laser_scan_t.num_ranges");
+}
+
+std::optional<Rejection> precheck(std::type_identity<lmf::global_map_t>, const std::uint8_t* bytes, std::size_t size,
+                                  const DecodeLimits& limits) {
+  return check_trailing_array<lmf::global_map_t>(bytes, size, 4 * sizeof(float),
+                                                 std::int64_t{limits.max_segments} * limits.max_robots * 8,
+                                                 "global_map_t.num_segments");
+}
+
+std::optional<Rejection> precheck(std::type_identity<lmf::server_status_t>, const std::uint8_t* bytes,
+                                  std::size_t size, const DecodeLimits&) {
+  // Each reason is a string (>= 5 bytes: length + NUL) and an int64 count.
+  return check_trailing_array<lmf::server_status_t>(bytes, size, 5 + 8, 1024, "server_status_t.num_reject_reasons");
+}
+
+// Assumption: corrected_frames_t ends with `int32_t num_robots` followed by
+// arrays of num_robots fixed-size elements.
+std::optional<Rejection> precheck(std::type_identity<lmf::corrected_frames_t>, const std::uint8_t* bytes,
+                                  std::size_t size, const DecodeLimits& limits) {
+  static const std::size_t per_robot = [] {
+    lmf::corrected_frames_t one{};
+    one.num_robots = 1;
+    one.robot_ids.resize(1);
+    one.last_applied_seq.resize(1);
+    one.frames.resize(1);
+    one.covariance.assign(1, std::vector<double>(6, 0.0));
+    return static_cast<std::size_t>(one.getEncodedSize()) - empty_size<lmf::corrected_frames_t>();
+  }();
+  return check_trailing_array<lmf::corrected_frames_t>(bytes, size, per_robot, limits.max_robots,
+                                                       "corrected_frames_t.num_robots");
+}
+
+// Assumption: local_map_t ends with `int32_t num_segments; segment_t
+// segments[num_segments]; int32_t num_covariance; double covariance[...]`.
+std::optional<Rejection> precheck(std::type_identity<lmf::local_map_t>, const std::uint8_t* bytes, std::size_t size,
+                                  const DecodeLimits& limits) {
+  const std::size_t base = empty_size<lmf::local_map_t>();
+  if (size < base) return reject(RejectReason::kDecodeFailed, "local_map_t: truncated");
+  const std::size_t segment_bytes = static_cast<std::size_t>(lmf::segment_t{}._getEncodedSizeNoHash());
+  const std::size_t segments_offset = base - 8;
+  if (auto r = check_count(bytes, size, segments_offset, segment_bytes, limits.max_segments, "local_map_t.num_segments")) {
+    return r;
+  }
+  const std::int64_t num_segments = read_i32_be(bytes + segments_offset);
+  const std::int64_t max_covariance = packed_size(3 + 2 * std::int64_t{limits.max_segments});
+  const std::size_t covariance_offset = base - 4 + static_cast<std::size_t>(num_segments) * segment_bytes;
+  return check_count(bytes, size, covariance_offset, sizeof(double), max_covariance, "local_map_t.num_covariance");
+}
+
+// ---- field checks --------------------------------------------------------------
+
+std::optional<Rejection> check_finite(double value, std::string_view what) {
+  if (!std::isfinite(value)) return reject(RejectReason::kNonFinite, std::string(what) + " = " + to_string(value));
+  return std::nullopt;
+}
+
+std::optional<Rejection> check_nonnegative(std::int64_t value, std::string_view what) {
+  if (value < 0) return reject(RejectReason::kOutOfRange, std::string(what) + " = " + to_string(value) + " < 0");
+  return std::nullopt;
+}
+
+std::optional<Rejection> check_angle(double angle_rad, double slack, std::string_view what) {
+  if (auto r = check_finite(angle_rad, what)) return r;
+  if (std::abs(angle_rad) > std::numbers::pi + slack) {
+    return reject(RejectReason::kBadAngle, std::string(what) + " = " + to_string(angle_rad) + " rad outside (-pi, pi]");
+  }
+  return std::nullopt;
+}
+
+Checked<Pose2> pose_from(const lmf::pose2_t& msg, std::string_view what) {
+  if (auto r = check_finite(msg.x, std::string(what) + ".x")) return *r;
+  if (auto r = check_finite(msg.y, std::string(what) + ".y")) return *r;
+  if (auto r = check_angle(msg.phi, kAngleSlackDouble, std::string(what) + ".phi")) return *r;
+  return Pose2(msg.x, msg.y, wrap_angle(msg.phi));
+}
+
+// A 3x3 covariance packed in 6 values.
+Checked<Eigen::Matrix3d> covariance3_from(const double* packed, std::size_t count, std::string_view what) {
+  if (count != 6) {
+    return reject(RejectReason::kWrongSize, std::string(what) + ": " + to_string(count) + " values, expected 6");
+  }
+  for (std::size_t i = 0; i < 6; ++i) {
+    if (auto r = check_finite(packed[i], std::string(what) + "[" + to_string(i) + "]")) return *r;
+  }
+  const Eigen::MatrixXd P = unpack_upper_triangle(std::span<const double>(packed, 6), 3);
+  if (auto r = check_covariance(P, what)) return *r;
+  return Eigen::Matrix3d(P);
+}
+
+}  // namespace
+
+// ---- decode_message -------------------------------------------------------------
+
+template <class Msg>
+Checked<Msg> decode_message(const void* data, std::size_t size, const DecodeLimits& limits) {
+  const std::string_view name = Msg::getTypeName();
+  if (size > limits.max_message_bytes) {
+    return reject(RejectReason::kOversized, std::string(name) + ": " + to_string(size) + " bytes > limit " +
+                                                to_string(limits.max_message_bytes));
+  }
+  if (data == nullptr && size != 0) return reject(RejectReason::kDecodeFailed, std::string(name) + ": no data");
+  const auto* bytes = static_cast<const std::uint8_t*>(data);
+  if (size < 8) return reject(RejectReason::kDecodeFailed, std::string(name) + ": " + to_string(size) + " bytes");
+  if (auto r = precheck(std::type_identity<Msg>{}, bytes, size, limits)) return *r;
+  Msg msg;
+  int used = -1;
+  try {
+    used = msg.decode(data, 0, static_cast<int>(size));
+  } catch (const std::exception& e) {  // e.g. bad_alloc from a count the precheck let through
+    return reject(RejectReason::kDecodeFailed, std::string(name) + ": " + e.what());
+  }
+  if (used < 0) {
+    return reject(RejectReason::kDecodeFailed, std::string(name) + ": wrong fingerprint or truncated (" +
+                                                   to_string(size) + " bytes)");
+  }
+  if (static_cast<std::size_t>(used) != size) {
+    return reject(RejectReason::kDecodeFailed,
+                  std::string(name) + ": " + to_string(size - static_cast<std::size_t>(used)) + " trailing bytes");
+  }
+  return msg;
+}
+
+template Checked<lmf::laser_scan_t> decode_message(const void*, std::size_t, const DecodeLimits&);
+template Checked<lmf::local_map_t> decode_message(const void*, std::size_t, const DecodeLimits&);
+template Checked<lmf::local_map_ack_t> decode_message(const void*, std::size_t, const DecodeLimits&);
+template Checked<lmf::corrected_frames_t> decode_message(const void*, std::size_t, const DecodeLimits&);
+template Checked<lmf::sighting_t> decode_message(const void*, std::size_t, const DecodeLimits&);
+template Checked<lmf::scan_ack_t> decode_message(const void*, std::size_t, const DecodeLimits&);
+template Checked<lmf::global_map_t> decode_message(const void*, std::size_t, const DecodeLimits&);
+template Checked<lmf::agent_status_t> decode_message(const void*, std::size_t, const DecodeLimits&);
+template Checked<lmf::server_status_t> decode_message(const void*, std::size_t, const DecodeLimits&);
+
+// ---- covariance helpers ------------------------------------------------------------
+
+std::vector<double> pack_upper_triangle(const Eigen::MatrixXd& P) {
+  assert(P.rows() == P.cols());
+  const Eigen::Index n = P.rows();
+  std::vector<double> packed;
+  packed.reserve(static_cast<std::size_t>(packed_size(n)));
+  for (Eigen::Index i = 0; i < n; ++i) {
+    for (Eigen::Index j = i; j < n; ++j) packed.push_back(P(i, j));
+  }
+  return packed;
+}
+
+Eigen::MatrixXd unpack_upper_triangle(std::span<const double> packed, int n) {
+  assert(n >= 0 && static_cast<std::int64_t>(packed.size()) == packed_size(n));
+  Eigen::MatrixXd P(n, n);
+  std::size_t k = 0;
+  for (int i = 0; i < n; ++i) {
+    for (int j = i; j < n; ++j) {
+      P(i, j) = packed[k];
+      P(j, i) = packed[k];
+      ++k;
+    }
+  }
+  return P;
+}
+
+std::optional<Rejection> check_covariance(const Eigen::MatrixXd& P, std::string_view what,
+                                          const CovarianceTolerance& tolerance) {
+  if (P.rows() != P.cols()) {
+    return reject(RejectReason::kWrongSize,
+                  std::string(what) + ": " + to_string(P.rows()) + " x " + to_string(P.cols()) + " is not square");
+  }
+  if (P.size() == 0) return std::nullopt;
+  if (!P.allFinite()) return reject(RejectReason::kNonFinite, std::string(what) + ": NaN or infinity");
+  const double scale = P.cwiseAbs().maxCoeff();
+  const double asymmetry = (P - P.transpose()).cwiseAbs().maxCoeff();
+  if (asymmetry > tolerance.symmetry * scale) {
+    return reject(RejectReason::kCovarianceNotSymmetric,
+                  std::string(what) + ": max |P - P^T| = " + to_string(asymmetry) + " (max |P| = " + to_string(scale) + ")");
+  }
+  // Pivoted LDLᵀ: for a PSD matrix every pivot is >= 0 up to rounding; an
+  // indefinite matrix shows a clearly negative pivot (or breaks the factorisation).
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(P.selfadjointView<Eigen::Upper>());
+  const double max_diagonal = P.diagonal().maxCoeff();
+  const double min_pivot = ldlt.vectorD().minCoeff();
+  if (ldlt.info() != Eigen::Success || !std::isfinite(min_pivot) || min_pivot < -tolerance.psd * std::abs(max_diagonal) ||
+      P.diagonal().minCoeff() < -tolerance.psd * std::abs(max_diagonal)) {
+    return reject(RejectReason::kCovarianceNotPsd,
+                  std::string(what) + ": LDL^T pivot " + to_string(min_pivot) + " (max P_ii = " + to_string(max_diagonal) + ")");
+  }
+  return std::nullopt;
+}
+
+// ---- pose2 -------------------------------------------------------------------------
+
+Checked<Pose2> from_message(const lmf::pose2_t& msg, const DecodeLimits&) { return pose_from(msg, "pose2_t"); }
+
+lmf::pose2_t to_message(const Pose2& pose) {
+  lmf::pose2_t msg;
+  msg.x = pose.x;
+  msg.y = pose.y;
+  msg.phi = pose.phi;
+  return msg;
+}
+
+// ---- laser scan ----------------------------------------------------------------------
+
+Checked<RobotScan> from_message(const lmf::laser_scan_t& msg, const DecodeLimits& limits) {
+  if (msg.num_ranges > limits.max_beams) {
+    return reject(RejectReason::kOversized, "laser_scan_t: " + to_string(msg.num_ranges) + " beams > limit " +
+                                                to_string(limits.max_beams));
+  }
+  if (msg.num_ranges < 0 || static_cast<std::size_t>(msg.num_ranges) != msg.ranges.size()) {
+    return reject(RejectReason::kWrongSize, "laser_scan_t: num_ranges " + to_string(msg.num_ranges) + " but " +
+                                                to_string(msg.ranges.size()) + " ranges");
+  }
+  if (auto r = check_nonnegative(msg.utime, "laser_scan_t.utime")) return *r;
+  if (auto r = check_nonnegative(msg.robot_id, "laser_scan_t.robot_id")) return *r;
+  if (auto r = check_nonnegative(msg.seq, "laser_scan_t.seq")) return *r;
+  auto odometry = pose_from(msg.odometry, "laser_scan_t.odometry");
+  if (!odometry) return odometry.rejection();
+
+  if (auto r = check_angle(msg.angle_min, kAngleSlackFloat, "laser_scan_t.angle_min")) return *r;
+  if (auto r = check_finite(msg.angle_increment, "laser_scan_t.angle_increment")) return *r;
+  const double span = static_cast<double>(msg.angle_increment) * std::max(0, msg.num_ranges - 1);
+  if (msg.angle_increment <= 0.0f || span > 2.0 * std::numbers::pi + kAngleSlackFloat) {
+    return reject(RejectReason::kBadAngle, "laser_scan_t.angle_increment = " + to_string(msg.angle_increment) +
+                                               " rad: must be > 0 with the scan spanning at most 2 pi");
+  }
+  if (auto r = check_finite(msg.max_range, "laser_scan_t.max_range")) return *r;
+  if (msg.max_range <= 0.0f) {
+    return reject(RejectReason::kOutOfRange, "laser_scan_t.max_range = " + to_string(msg.max_range) + " m <= 0");
+  }
+
+  RobotScan out;
+  out.robot_id = msg.robot_id;
+  out.seq = msg.seq;
+  out.scan.utime = msg.utime;
+  out.scan.odometry = odometry.value();
+  out.scan.angle_min_rad = msg.angle_min;
+  out.scan.angle_increment_rad = msg.angle_increment;
+  out.scan.max_range_m = msg.max_range;
+  out.scan.ranges_m.reserve(msg.ranges.size());
+  for (std::size_t i = 0; i < msg.ranges.size(); ++i) {
+    const float range = msg.ranges[i];
+    if (!std::isfinite(range)) {
+      return reject(RejectReason::kNonFinite, "laser_scan_t.ranges[" + to_string(i) + "] = " + to_string(range));
+    }
+    if (range < 0.0f) {
+      return reject(RejectReason::kOutOfRange, "laser_scan_t.ranges[" + to_string(i) + "] = " + to_string(range) + " m < 0");
+    }
+    out.scan.ranges_m.push_back(range);
+  }
+  return out;
+}
+
+lmf::laser_scan_t to_message(const RobotScan& scan) {
+  lmf::laser_scan_t msg;
+  msg.utime = scan.scan.utime;
+  msg.robot_id = scan.robot_id;
+  msg.seq = scan.seq;
+  msg.odometry = to_message(scan.scan.odometry);
+  msg.angle_min = static_cast<float>(scan.scan.angle_min_rad);
+  msg.angle_increment = static_cast<float>(scan.scan.angle_increment_rad);
+  msg.max_range = static_cast<float>(scan.scan.max_range_m);
+  msg.num_ranges = static_cast<std::int32_t>(scan.scan.ranges_m.size());
+  msg.ranges.reserve(scan.scan.ranges_m.size());
+  for (const double r : scan.scan.ranges_m) msg.ranges.push_back(static_cast<float>(r));
+  return msg;
+}
+
+// ---- local map -------------------------------------------------------------------------
+
+Checked<LocalMapSnapshot> from_message(const lmf::local_map_t& msg, const DecodeLimits& limits) {
+  if (msg.num_segments > limits.max_segments) {
+    return reject(RejectReason::kOversized, "local_map_t: " + to_string(msg.num_segments) + " segments > limit " +
+                                                to_string(limits.max_segments));
+  }
+  if (msg.num_segments < 0 || static_cast<std::size_t>(msg.num_segments) != msg.segments.size()) {
+    return reject(RejectReason::kWrongSize, "local_map_t: num_segments " + to_string(msg.num_segments) + " but " +
+                                                to_string(msg.segments.size()) + " segments");
+  }
+  const int n = 3 + 2 * msg.num_segments;  // DESIGN §7: robot (3) then 2 per segment
+  if (msg.num_covariance != packed_size(n) || msg.covariance.size() != static_cast<std::size_t>(packed_size(n))) {
+    return reject(RejectReason::kWrongSize, "local_map_t.covariance: num_covariance " + to_string(msg.num_covariance) +
+                                                " with " + to_string(msg.covariance.size()) + " values; n = " +
+                                                to_string(n) + " needs " + to_string(packed_size(n)));
+  }
+  if (auto r = check_nonnegative(msg.utime, "local_map_t.utime")) return *r;
+  if (auto r = check_nonnegative(msg.robot_id, "local_map_t.robot_id")) return *r;
+  if (auto r = check_nonnegative(msg.seq, "local_map_t.seq")) return *r;
+  if (auto r = check_nonnegative(msg.first_scan_utime, "local_map_t.first_scan_utime")) return *r;
+  if (auto r = check_nonnegative(msg.num_scans, "local_map_t.num_scans")) return *r;
+  if (msg.first_scan_utime > msg.utime) {
+    return reject(RejectReason::kOutOfRange, "local_map_t: first_scan_utime " + to_string(msg.first_scan_utime) +
+                                                 " after utime " + to_string(msg.utime));
+  }
+  auto robot = pose_from(msg.robot, "local_map_t.robot");
+  if (!robot) return robot.rejection();
+
+  LocalMapSnapshot out;
+  out.robot_id = msg.robot_id;
+  out.seq = msg.seq;
+  out.first_utime = msg.first_scan_utime;
+  out.last_utime = msg.utime;
+  out.x_LR = robot.value();
+  out.segments.reserve(msg.segments.size());
+  for (std::size_t i = 0; i < msg.segments.size(); ++i) {
+    const std::string what = "local_map_t.segments[" + to_string(i) + "]";
+    auto location = pose_from(msg.segments[i].location, what + ".location");
+    if (!location) return location.rejection();
+    const float length = msg.segments[i].length;
+    if (auto r = check_finite(length, what + ".length")) return *r;
+    if (length < 0.0f) return reject(RejectReason::kOutOfRange, what + ".length = " + to_string(length) + " m < 0");
+    out.segments.push_back(SegmentEstimate{location.value(), length});
+  }
+  for (std::size_t i = 0; i < msg.covariance.size(); ++i) {
+    if (auto r = check_finite(msg.covariance[i], "local_map_t.covariance[" + to_string(i) + "]")) return *r;
+  }
+  out.covariance = unpack_upper_triangle(msg.covariance, n);
+  if (auto r = check_covariance(out.covariance, "local_map_t.covariance")) return *r;
+  return out;
+}
+
+Checked<lmf::local_map_t> to_message(const LocalMapSnapshot& map, const CovarianceTolerance& tolerance) {
+  const Eigen::Index n = 3 + 2 * static_cast<Eigen::Index>(map.segments.size());
+  if (map.covariance.rows() != n || map.covariance.cols() != n) {
+    return reject(RejectReason::kWrongSize, "LocalMapSnapshot.covariance: " + to_string(map.covariance.rows()) + " x " +
+                                                to_string(map.covariance.cols()) + " for " +
+                                                to_string(map.segments.size()) + " segments (n = " + to_string(n) + ")");
+  }
+  if (auto r = check_covariance(map.covariance, "LocalMapSnapshot.covariance", tolerance)) return *r;
+  lmf::local_map_t msg;
+  msg.utime = map.last_utime;
+  msg.robot_id = map.robot_id;
+  msg.seq = map.seq;
+  msg.first_scan_utime = map.first_utime;
+  msg.num_scans = static_cast<std::int32_t>(map.scan_poses.size());
+  msg.robot = to_message(map.x_LR);
+  msg.num_segments = static_cast<std::int32_t>(map.segments.size());
+  msg.segments.reserve(map.segments.size());
+  for (const SegmentEstimate& s : map.segments) {
+    lmf::segment_t segment;
+    segment.location = to_message(s.location);
+    segment.length = static_cast<float>(s.length_m);
+    msg.segments.push_back(segment);
+  }
+  msg.covariance = pack_upper_triangle(map.covariance);
+  msg.num_covariance = static_cast<std::int32_t>(msg.covariance.size());
+  // Everything else the receiver will check, checked here first.
+  if (auto checked = from_message(msg, DecodeLimits{}); !checked) return checked.rejection();
+  return msg;
+}
+
+// ---- corrected frames ---------------------------------------------------------------------
+
+Checked<CorrectedFrames> from_message(const lmf::corrected_frames_t& msg, const DecodeLimits& limits) {
+  if (msg.num_robots > limits.max_robots) {
+    return reject(RejectReason::kOversized, "corrected_frames_t: " + to_string(msg.num_robots) + " robots > limit " +
+                                                to_string(limits.max_robots));
+  }
+  const auto count = static_cast<std::size_t>(std::max(msg.num_robots, 0));
+  if (msg.num_robots < 0 || msg.robot_ids.size() != count || msg.last_applied_seq.size() != count ||
+      msg.frames.size() != count || msg.covariance.size() != count) {
+    return reject(RejectReason::kWrongSize, "corrected_frames_t: arrays disagree with num_robots " +
+                                                to_string(msg.num_robots));
+  }
+  if (auto r = check_nonnegative(msg.utime, "corrected_frames_t.utime")) return *r;
+  if (auto r = check_nonnegative(msg.fusion_count, "corrected_frames_t.fusion_count")) return *r;
+  CorrectedFrames out;
+  out.utime = msg.utime;
+  out.fusion_count = msg.fusion_count;
+  std::set<int> seen;
+  for (std::size_t i = 0; i < count; ++i) {
+    const std::string what = "corrected_frames_t[" + to_string(i) + "]";
+    CorrectedFrame frame;
+    frame.robot_id = msg.robot_ids[i];
+    if (auto r = check_nonnegative(frame.robot_id, what + ".robot_id")) return *r;
+    if (!seen.insert(frame.robot_id).second) {
+      return reject(RejectReason::kOutOfRange, what + ": robot " + to_string(frame.robot_id) + " listed twice");
+    }
+    frame.last_applied_seq = msg.last_applied_seq[i];
+    if (frame.last_applied_seq < -1) {
+      return reject(RejectReason::kOutOfRange, what + ".last_applied_seq = " + to_string(frame.last_applied_seq));
+    }
+    auto pose = pose_from(msg.frames[i], what + ".frame");
+    if (!pose) return pose.rejection();
+    frame.x_WL = pose.value();
+    auto covariance = covariance3_from(msg.covariance[i].data(), msg.covariance[i].size(), what + ".covariance");
+    if (!covariance) return covariance.rejection();
+    frame.covariance = covariance.value();
+    out.frames.push_back(frame);
+  }
+  return out;
+}
+
+Checked<lmf::corrected_frames_t> to_message(const CorrectedFrames& frames, const CovarianceTolerance& tolerance) {
+  lmf::corrected_frames_t msg;
+  msg.utime = frames.utime;
+  msg.fusion_count = frames.fusion_count;
+  msg.num_robots = static_cast<std::int32_t>(frames.frames.size());
+  for (const CorrectedFrame& frame : frames.frames) {
+    if (auto r = check_covariance(frame.covariance, "CorrectedFrame.covariance of robot " + to_string(frame.robot_id),
+                                  tolerance)) {
+      return *r;
+    }
+    msg.robot_ids.push_back(frame.robot_id);
+    msg.last_applied_seq.push_back(frame.last_applied_seq);
+    msg.frames.push_back(to_message(frame.x_WL));
+    msg.covariance.push_back(pack_upper_triangle(frame.covariance));
+  }
+  if (auto checked = from_message(msg, DecodeLimits{}); !checked) return checked.rejection();
+  return msg;
+}
+
+// ---- sighting ----------------------------------------------------------------------------------
+
+Checked<Sighting> from_message(const lmf::sighting_t& msg, const DecodeLimits&) {
+  if (auto r = check_nonnegative(msg.utime, "sighting_t.utime")) return *r;
+  if (auto r = check_nonnegative(msg.observer_id, "sighting_t.observer_id")) return *r;
+  if (auto r = check_nonnegative(msg.observed_id, "sighting_t.observed_id")) return *r;
+  if (msg.observer_id == msg.observed_id) {
+    return reject(RejectReason::kOutOfRange, "sighting_t: robot " + to_string(msg.observer_id) + " sees itself");
+  }
+  auto pose = pose_from(msg.relative, "sighting_t.relative");
+  if (!pose) return pose.rejection();
+  auto covariance = covariance3_from(msg.covariance, 6, "sighting_t.covariance");
+  if (!covariance) return covariance.rejection();
+  Sighting out;
+  out.utime = msg.utime;
+  out.observer_id = msg.observer_id;
+  out.observed_id = msg.observed_id;
+  out.x_AB = pose.value();
+  out.covariance = covariance.value();
+  return out;
+}
+
+Checked<lmf::sighting_t> to_message(const Sighting& sighting, const CovarianceTolerance& tolerance) {
+  if (auto r = check_covariance(sighting.covariance, "Sighting.covariance", tolerance)) return *r;
+  lmf::sighting_t msg;
+  msg.utime = sighting.utime;
+  msg.observer_id = sighting.observer_id;
+  msg.observed_id = sighting.observed_id;
+  msg.relative = to_message(sighting.x_AB);
+  const std::vector<double> packed = pack_upper_triangle(sighting.covariance);
+  std::copy(packed.begin(), packed.end(), msg.covariance);
+  if (auto checked = from_message(msg, DecodeLimits{}); !checked) return checked.rejection();
+  return msg;
+}
+
+// ---- acknowledgements ----------------------------------------------------------------------------
+
+Checked<ScanAck> from_message(const lmf::scan_ack_t& msg, const DecodeLimits&) {
+  if (auto r = check_nonnegative(msg.utime, "scan_ack_t.utime")) return *r;
+  if (auto r = check_nonnegative(msg.robot_id, "scan_ack_t.robot_id")) return *r;
+  if (auto r = check_nonnegative(msg.seq, "scan_ack_t.seq")) return *r;
+  return ScanAck{msg.utime, msg.robot_id, msg.seq};
+}
+
+lmf::scan_ack_t to_message(const ScanAck& ack) {
+  lmf::scan_ack_t msg;
+  msg.utime = ack.utime;
+  msg.robot_id = ack.robot_id;
+  msg.seq = ack.seq;
+  return msg;
+}
+
+Checked<LocalMapAck> from_message(const lmf::local_map_ack_t& msg, const DecodeLimits&) {
+  if (auto r = check_nonnegative(msg.utime, "local_map_ack_t.utime")) return *r;
+  if (auto r = check_nonnegative(msg.robot_id, "local_map_ack_t.robot_id")) return *r;
+  if (auto r = check_nonnegative(msg.seq, "local_map_ack_t.seq")) return *r;
+  if (msg.status != lmf::local_map_ack_t::FUSED && msg.status != lmf::local_map_ack_t::DUPLICATE &&
+      msg.status != lmf::local_map_ack_t::QUEUED) {
+    return reject(RejectReason::kOutOfRange, "local_map_ack_t.status = " + to_string(msg.status));
+  }
+  return LocalMapAck{msg.utime, msg.robot_id, msg.seq, static_cast<LocalMapAck::Status>(msg.status)};
+}
+
+lmf::local_map_ack_t to_message(const LocalMapAck& ack) {
+  lmf::local_map_ack_t msg;
+  msg.utime = ack.utime;
+  msg.robot_id = ack.robot_id;
+  msg.seq = ack.seq;
+  msg.status = static_cast<std::int8_t>(ack.status);
+  return msg;
+}
+
+}  // namespace lmf::runtime

@@ -1,0 +1,131 @@
+// THE one place where LCM messages meet core types (DESIGN §2, §8).
+//
+// Three layers, each usable alone:
+//  1. decode_message<Msg>(bytes): fingerprint, byte limit and array counts are
+//     checked against the buffer BEFORE lcm-gen's decoder runs (it resizes
+//     vectors to the claimed count before checking the length, so a forged
+//     count could otherwise allocate gigabytes), then the message is decoded.
+//  2. from_message(msg): validates every field and converts to the core type;
+//     to_message(core): the reverse. Encoders of types that carry a covariance
+//     return Checked<> too: only the sender can see an asymmetric matrix (the
+//     wire holds the packed upper triangle) and an indefinite one must not leave.
+//  3. decode<Core>(bytes) = 1 then 2.
+// Nothing here throws on bad input, every refusal is a Rejection with a reason.
+// unknown_robot and stale_sequence are decided by callers who know the robots.
+//
+// Conventions on the wire (lcmtypes/*.lcm): covariances as packed upper
+// triangles row by row (P00 P01 .. P0n P11 .. Pnn); angles in (-pi, pi];
+// times in microseconds; ids >= 0; laser angles and ranges as float.
+//
+// Threading: all functions are pure and thread-safe.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "lmf/agent_status_t.hpp"
+#include "lmf/corrected_frames_t.hpp"
+#include "lmf/geometry/pose2.hpp"
+#include "lmf/global_map_t.hpp"
+#include "lmf/laser_scan_t.hpp"
+#include "lmf/local_map/local_map_snapshot.hpp"
+#include "lmf/local_map_ack_t.hpp"
+#include "lmf/local_map_t.hpp"
+#include "lmf/pose2_t.hpp"
+#include "lmf/scan_ack_t.hpp"
+#include "lmf/server_status_t.hpp"
+#include "lmf/sighting_t.hpp"
+#include "runtime/messages.hpp"
+#include "runtime/rejection.hpp"
+
+namespace lmf::runtime {
+
+// Bounds that keep one message from exhausting memory or time (oversized).
+struct DecodeLimits {
+  std::size_t max_message_bytes = 8u << 20;  // 8 MiB: a 512-segment local map is ~4.2 MB
+  int max_beams = 8192;                      // per laser scan
+  int max_segments = 512;                    // per local map (n = 1027 state dims)
+  int max_robots = 256;                      // per corrected_frames_t
+};
+
+// Tolerances of the covariance checks (relative to the matrix's own scale).
+struct CovarianceTolerance {
+  double symmetry = 1e-9;  // |P_ij - P_ji| <= symmetry * max |P|
+  double psd = 1e-9;       // every LDLᵀ pivot >= -psd * max P_ii
+};
+
+// ---- 1. bytes <-> LCM messages ---------------------------------------------
+// Defined for every message type in lcmtypes/ except the nested pose2_t and
+// segment_t. A truncated, padded or foreign buffer is decode_failed.
+template <class Msg>
+Checked<Msg> decode_message(const void* data, std::size_t size, const DecodeLimits& limits = {});
+
+template <class Msg>
+std::vector<std::uint8_t> encode_message(const Msg& msg) {
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(msg.getEncodedSize()));
+  msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  return bytes;
+}
+
+// ---- covariance helpers ------------------------------------------------------
+// Row-by-row upper triangle of the n x n matrix P (n(n+1)/2 values).
+std::vector<double> pack_upper_triangle(const Eigen::MatrixXd& P);
+// The symmetric n x n matrix of a packed upper triangle; requires
+// packed.size() == n(n+1)/2 (checked by callers; asserts).
+Eigen::MatrixXd unpack_upper_triangle(std::span<const double> packed, int n);
+// nullopt when P is square, finite, symmetric and PSD within tolerance, else
+// the rejection (wrong_size, non_finite, covariance_not_symmetric,
+// covariance_not_psd) naming `what`. PSD is decided from the pivots of a
+// pivoted LDLᵀ factorisation.
+std::optional<Rejection> check_covariance(const Eigen::MatrixXd& P, std::string_view what,
+                                          const CovarianceTolerance& tolerance = {});
+
+// ---- 2. LCM messages <-> core values ----------------------------------------
+Checked<Pose2> from_message(const lmf::pose2_t& msg, const DecodeLimits& limits = {});
+lmf::pose2_t to_message(const Pose2& pose);
+
+Checked<RobotScan> from_message(const lmf::laser_scan_t& msg, const DecodeLimits& limits = {});
+lmf::laser_scan_t to_message(const RobotScan& scan);  // ranges and angles become float
+
+// The snapshot's scan_poses are not shipped (the fusion does not need them):
+// num_scans carries their count, and a decoded snapshot has none.
+Checked<LocalMapSnapshot> from_message(const lmf::local_map_t& msg, const DecodeLimits& limits = {});
+Checked<lmf::local_map_t> to_message(const LocalMapSnapshot& map, const CovarianceTolerance& tolerance = {});
+
+Checked<CorrectedFrames> from_message(const lmf::corrected_frames_t& msg, const DecodeLimits& limits = {});
+Checked<lmf::corrected_frames_t> to_message(const CorrectedFrames& frames,
+                                            const CovarianceTolerance& tolerance = {});
+
+Checked<Sighting> from_message(const lmf::sighting_t& msg, const DecodeLimits& limits = {});
+Checked<lmf::sighting_t> to_message(const Sighting& sighting, const CovarianceTolerance& tolerance = {});
+
+Checked<ScanAck> from_message(const lmf::scan_ack_t& msg, const DecodeLimits& limits = {});
+lmf::scan_ack_t to_message(const ScanAck& ack);
+
+Checked<LocalMapAck> from_message(const lmf::local_map_ack_t& msg, const DecodeLimits& limits = {});
+lmf::local_map_ack_t to_message(const LocalMapAck& ack);
+
+// ---- 3. bytes -> core values -------------------------------------------------
+template <class Core>
+struct MessageOf;  // the LCM type that carries Core
+template <> struct MessageOf<RobotScan> { using type = lmf::laser_scan_t; };
+template <> struct MessageOf<LocalMapSnapshot> { using type = lmf::local_map_t; };
+template <> struct MessageOf<CorrectedFrames> { using type = lmf::corrected_frames_t; };
+template <> struct MessageOf<Sighting> { using type = lmf::sighting_t; };
+template <> struct MessageOf<ScanAck> { using type = lmf::scan_ack_t; };
+template <> struct MessageOf<LocalMapAck> { using type = lmf::local_map_ack_t; };
+
+template <class Core>
+Checked<Core> decode(const void* data, std::size_t size, const DecodeLimits& limits = {}) {
+  auto msg = decode_message<typename MessageOf<Core>::type>(data, size, limits);
+  if (!msg) return msg.rejection();
+  return from_message(msg.value(), limits);
+}
+
+}  // namespace lmf::runtime

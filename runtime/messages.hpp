@@ -1,0 +1,62 @@
+// Plain values carried by the LCM messages that have no home in the core yet
+// (no LCM inside: the core may take these by value). Frames and units as in
+// DESIGN §3: x_AB is frame B seen from frame A, metres and radians.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "lmf/geometry/pose2.hpp"
+#include "lmf/scan/laser_scan.hpp"
+
+namespace lmf::runtime {
+
+// A scan as it travels: the core LaserScan plus who took it and its number.
+struct RobotScan {
+  int robot_id = 0;
+  std::int64_t seq = 0;  // scan number of this robot, from 0, consecutive
+  LaserScan scan;
+};
+
+// "Agent robot_id has processed scan seq" (lockstep replay).
+struct ScanAck {
+  std::int64_t utime = 0;
+  int robot_id = 0;
+  std::int64_t seq = 0;
+};
+
+// The server's answer to local map (robot_id, seq).
+struct LocalMapAck {
+  enum class Status : std::int8_t { kFused = 0, kDuplicate = 1, kQueued = 2 };  // = local_map_ack_t constants
+  std::int64_t utime = 0;
+  int robot_id = 0;
+  std::int64_t seq = 0;
+  Status status = Status::kFused;
+};
+
+// The corrected local-map frame L_r of one joined robot (DESIGN §5 step 6).
+struct CorrectedFrame {
+  int robot_id = 0;
+  std::int64_t last_applied_seq = -1;  // last local map fused for this robot, -1 if none
+  Pose2 x_WL;                          // where robot r's current local map starts, in W
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // Cov(p_L), symmetric PSD
+};
+
+struct CorrectedFrames {
+  std::int64_t utime = 0;
+  std::int64_t fusion_count = 0;  // fusions applied so far
+  std::vector<CorrectedFrame> frames;  // distinct robot ids
+};
+
+// Robot B (observed_id) seen from robot A (observer_id) at utime: lets B join.
+struct Sighting {
+  std::int64_t utime = 0;
+  int observer_id = 0;
+  int observed_id = 0;
+  Pose2 x_AB;  // observed robot B in the observer's robot frame A
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // Cov of x_AB, symmetric PSD
+};
+
+}  // namespace lmf::runtime

@@ -1,0 +1,63 @@
+#include "runtime/options.hpp"
+
+#include <cstdlib>
+#include <iostream>
+#include <sstream>
+#include <stdexcept>
+
+#include <boost/program_options/parsers.hpp>
+#include <boost/program_options/value_semantic.hpp>
+
+namespace lmf::runtime {
+
+namespace po = boost::program_options;
+
+void add_common_options(po::options_description& description, CommonOptions& options) {
+  const char* env_url = std::getenv("LCM_DEFAULT_URL");
+  options.lcm_url = env_url != nullptr ? env_url : "";
+  description.add_options()
+      ("help,h", "print this help and exit")
+      ("lcm-url", po::value<std::string>(&options.lcm_url)->default_value(options.lcm_url),
+       "LCM provider URL (default: $LCM_DEFAULT_URL; when empty, LCM's udpm://239.255.76.67:7667?ttl=0); "
+       "memq:// keeps every message inside the process")
+      ("channel-prefix", po::value<std::string>(&options.channel_prefix)->default_value(options.channel_prefix),
+       "prefix of every LCM channel name: upper-case letters, digits and '_'");
+}
+
+ParseResult parse_options(int argc, const char* const argv[], const po::options_description& description,
+                          std::string_view program, std::string_view summary, po::variables_map* variables) {
+  po::variables_map local;
+  po::variables_map& vm = variables != nullptr ? *variables : local;
+  std::ostringstream usage;
+  usage << "Usage: " << program << " [options]\n" << summary << "\n\n" << description;
+  try {
+    po::store(po::command_line_parser(argc, argv).options(description).run(), vm);
+    if (vm.count("help") != 0) return {ParseResult::Status::kHelp, usage.str()};
+    po::notify(vm);
+    if (vm.count("channel-prefix") != 0) Channels{vm["channel-prefix"].as<std::string>()};  // validates
+  } catch (const std::exception& e) {
+    return {ParseResult::Status::kError, e.what()};
+  }
+  return {ParseResult::Status::kOk, {}};
+}
+
+void parse_options_or_exit(int argc, const char* const argv[], const po::options_description& description,
+                           std::string_view program, std::string_view summary, po::variables_map* variables) {
+  const ParseResult result = parse_options(argc, argv, description, program, summary, variables);
+  switch (result.status) {
+    case ParseResult::Status::kOk: return;
+    case ParseResult::Status::kHelp:
+      std::cout << result.message;
+      std::exit(0);
+    case ParseResult::Status::kError:
+      std::cerr << program << ": error: " << result.message << "\nTry '" << program << " --help'.\n";
+      std::exit(2);
+  }
+}
+
+void exit_with_error(std::string_view program, std::string_view message, int exit_code) {
+  std::cerr << program << ": error: " << message << "\n";
+  std::exit(exit_code);
+}
+
+}  // namespace lmf::runtime
