@@ -12,9 +12,9 @@ namespace {
 
 constexpr double kRadToDeg = 180.0 / std::numbers::pi;
 
-void require_sorted(const std::vector<TimedPose>& poses, const char* what) {
+void require_sorted(const std::vector<StampedPose>& poses, const char* what) {
   const bool sorted = std::is_sorted(poses.begin(), poses.end(),
-                                     [](const TimedPose& a, const TimedPose& b) { return a.utime < b.utime; });
+                                     [](const StampedPose& a, const StampedPose& b) { return a.utime < b.utime; });
   if (!sorted) throw std::invalid_argument(std::string("associate_by_time: ") + what + " is not sorted by time");
 }
 
@@ -22,14 +22,14 @@ double planar_distance(const Pose2& a, const Pose2& b) { return std::hypot(a.x -
 
 }  // namespace
 
-std::vector<PosePair> associate_by_time(const std::vector<TimedPose>& estimate,
-                                        const std::vector<TimedPose>& reference, int64_t tolerance_us) {
+std::vector<PosePair> associate_by_time(const std::vector<StampedPose>& estimate,
+                                        const std::vector<StampedPose>& reference, int64_t tolerance_us) {
   require_sorted(estimate, "the estimate");
   require_sorted(reference, "the reference");
   std::vector<PosePair> pairs;
   pairs.reserve(estimate.size());
   std::size_t r = 0;
-  for (const TimedPose& e : estimate) {
+  for (const StampedPose& e : estimate) {
     // Advance to the last reference not after e (nearest is it or the next one).
     while (r + 1 < reference.size() && reference[r + 1].utime <= e.utime) ++r;
     std::optional<std::size_t> best;

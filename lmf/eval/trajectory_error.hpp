@@ -8,13 +8,9 @@
 #include <vector>
 
 #include "lmf/geometry/pose2.hpp"
+#include "lmf/geometry/stamped_pose.hpp"
 
 namespace lmf::eval {
-
-struct TimedPose {
-  int64_t utime = 0;  // microseconds
-  Pose2 pose;
-};
 
 struct PosePair {
   Pose2 estimate;
@@ -24,8 +20,8 @@ struct PosePair {
 // Pairs each estimate with the reference pose of the nearest timestamp within
 // `tolerance_us`; estimates without one are left out. Both inputs must be sorted
 // by time (throws std::invalid_argument otherwise).
-std::vector<PosePair> associate_by_time(const std::vector<TimedPose>& estimate,
-                                        const std::vector<TimedPose>& reference, int64_t tolerance_us = 1000);
+std::vector<PosePair> associate_by_time(const std::vector<StampedPose>& estimate,
+                                        const std::vector<StampedPose>& reference, int64_t tolerance_us = 1000);
 
 // The rigid transform x_RE (reference frame R from estimate frame E) minimising
 // Σ |p_ref - x_RE(p_est)|² over positions (closed form, 2-D Kabsch without scale).

@@ -10,13 +10,9 @@
 #include <vector>
 
 #include "lmf/geometry/pose2.hpp"
+#include "lmf/geometry/stamped_pose.hpp"
 
 namespace lmf::io {
-
-struct StampedPose {
-  int64_t utime = 0;  // microseconds
-  Pose2 pose;         // x_WR: the robot in the trajectory's frame
-};
 
 // A malformed trajectory line: what() is "file:line: what was wrong".
 class TrajectoryParseError : public std::runtime_error {

@@ -62,13 +62,13 @@ TEST(TrajectoryError, RelativeErrorOfAScaledPath) {
 }
 
 TEST(TrajectoryError, AssociationByNearestTimestampWithinTolerance) {
-  const std::vector<TimedPose> estimate = {{1000, {1, 0, 0}}, {2600, {2, 0, 0}}, {5000, {3, 0, 0}}};
-  const std::vector<TimedPose> reference = {{1000, {10, 0, 0}}, {2000, {20, 0, 0}}, {3000, {30, 0, 0}}};
+  const std::vector<StampedPose> estimate = {{1000, {1, 0, 0}}, {2600, {2, 0, 0}}, {5000, {3, 0, 0}}};
+  const std::vector<StampedPose> reference = {{1000, {10, 0, 0}}, {2000, {20, 0, 0}}, {3000, {30, 0, 0}}};
   const std::vector<PosePair> pairs = associate_by_time(estimate, reference, 500);
   ASSERT_EQ(pairs.size(), 2u);  // 5000 has no reference within 500 us
   EXPECT_DOUBLE_EQ(pairs[0].reference.x, 10.0);
   EXPECT_DOUBLE_EQ(pairs[1].reference.x, 30.0);  // 2600 is nearer to 3000 than to 2000
-  const std::vector<TimedPose> unsorted = {{2000, {}}, {1000, {}}};
+  const std::vector<StampedPose> unsorted = {{2000, {}}, {1000, {}}};
   EXPECT_THROW(associate_by_time(unsorted, reference), std::invalid_argument);
   EXPECT_THROW(align_se2({}), std::invalid_argument);
 }
