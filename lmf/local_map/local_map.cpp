@@ -1,0 +1,434 @@
+#include "lmf/local_map/local_map.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+#include "lmf/local_map/local_map_measurements.hpp"
+#include "lmf/scan/segment_extraction.hpp"
+#include "lmf/spmap/segment_ops.hpp"
+
+namespace lmf {
+namespace {
+
+using spmap::EntityId;
+using spmap::EntityKind;
+
+bool finite(const Pose2& x) { return std::isfinite(x.x) && std::isfinite(x.y) && std::isfinite(x.phi); }
+
+// An observation the filter can use: finite, positive length, covariance
+// symmetric positive semidefinite. Sensor data never aborts: others are skipped.
+bool usable(const ObservedSegment& e) {
+  if (!finite(e.location) || !std::isfinite(e.length_m) || e.length_m <= 0.0) return false;
+  const Eigen::Matrix2d& C = e.covariance;
+  if (!C.allFinite()) return false;
+  const double scale = std::max({1e-300, std::abs(C(0, 0)), std::abs(C(1, 1))});
+  if (std::abs(C(0, 1) - C(1, 0)) > 1e-9 * scale) return false;
+  return C(0, 0) >= 0.0 && C(1, 1) >= 0.0 && C(0, 0) * C(1, 1) - C(0, 1) * C(1, 0) >= -1e-12 * scale * scale;
+}
+
+}  // namespace
+
+LocalMap::LocalMap(const LocalMapConfig& config, int robot_id) : config_(config), robot_id_(robot_id) {
+  config_.validate();
+  robot_ = map_.add(EntityKind::kRobot, Pose2());
+}
+
+Pose2 LocalMap::x_LR() const { return map_.entity(robot_).location; }
+
+Eigen::Matrix3d LocalMap::robot_covariance() const { return map_.block(robot_, robot_); }
+
+std::size_t LocalMap::num_segments() const { return map_.entities().size() - 1; }
+
+std::vector<EntityId> LocalMap::segment_ids() const {
+  std::vector<EntityId> ids;
+  ids.reserve(num_segments());
+  for (const spmap::Entity& e : map_.entities()) {
+    if (e.kind == EntityKind::kSegment) ids.push_back(e.id);
+  }
+  return ids;
+}
+
+EntityId LocalMap::add_segment_for_test(const Pose2& x_LS, double length_m, const Eigen::Matrix2d& covariance) {
+  if (!finite(x_LS) || !std::isfinite(length_m) || length_m <= 0.0 || !covariance.allFinite()) {
+    throw std::invalid_argument("LocalMap::add_segment_for_test: location, length (> 0) and covariance must be finite");
+  }
+  const EntityId id = map_.add(EntityKind::kSegment, x_LS, std::nullopt, length_m);
+  const Eigen::Index off = map_.entity(id).offset;
+  map_.mutable_covariance().block<2, 2>(off, off) = 0.5 * (covariance + covariance.transpose());
+  group_parent_[id] = id;
+  return id;
+}
+
+// ---------------------------------------------------------------------------
+// Step 1: prediction.
+
+void LocalMap::predict(const Pose2& u) {
+  if (!finite(u)) throw std::invalid_argument("LocalMap::predict: non-finite odometry increment");
+  const local_map::PredictionJacobians pj = local_map::prediction_jacobians(x_LR(), u);
+  // p_R ← J_R p_R transforms P_RR and every cross term P_R,x exactly (DESIGN §4.1) ...
+  map_.replace_perturbation(robot_, {{robot_, pj.J_R}});
+  map_.mutable_entity(robot_).location = pj.x_LR;
+  // ... and the odometry noise, independent of the state, adds J_u Q J_uᵀ to P_RR.
+  const Eigen::Index off = map_.entity(robot_).offset;
+  const Eigen::Matrix3d Q = local_map::odometry_noise(u, config_);
+  map_.mutable_covariance().block<3, 3>(off, off) += pj.J_u * Q * pj.J_u.transpose();
+  span_m_ += std::hypot(u.x, u.y);
+}
+
+// ---------------------------------------------------------------------------
+// The scan.
+
+ScanReport LocalMap::update(int64_t utime, const Pose2& odometry, const std::vector<ObservedSegment>& observations) {
+  if (!finite(odometry)) {
+    throw std::invalid_argument("LocalMap::update: non-finite odometry pose in the scan at utime " +
+                                std::to_string(utime));
+  }
+  ScanReport report;
+  report.utime = utime;
+  report.observations = static_cast<int>(observations.size());
+  report.map_segments_before = static_cast<int>(num_segments());
+
+  std::vector<ObservedSegment> usable_observations;
+  usable_observations.reserve(observations.size());
+  for (const ObservedSegment& e : observations) {
+    if (usable(e)) {
+      usable_observations.push_back(e);
+    } else {
+      ++report.observations_rejected;
+    }
+  }
+
+  // Step 1: predict with the odometry increment since the previous scan.
+  if (odometry_reference_) predict(between(*odometry_reference_, odometry));
+  odometry_reference_ = odometry;
+  if (!first_utime_) first_utime_ = utime;
+  last_utime_ = utime;
+
+  // Step 3: individual pairing; steps 4–5: joint compatibility and one update.
+  std::vector<Candidate> candidates = pair_observations(usable_observations, report);
+  std::vector<bool> had_candidate(usable_observations.size(), false);
+  for (const Candidate& c : candidates) had_candidate[c.pairing.observation] = true;
+  const std::vector<Pairing> pairings = joint_update(std::move(candidates), report);
+
+  geometric_update(usable_observations, pairings, report);                                        // step 6
+  fuse_multiple_matches(pairings, report);                                                          // step 7
+  const std::vector<EntityId> added = add_unpaired(usable_observations, had_candidate, pairings, report);  // step 8
+  if (config_.constraints_enabled) apply_constraints(added, report);                               // step 9
+
+  scan_poses_.push_back({utime, x_LR()});
+  report.map_segments = static_cast<int>(num_segments());
+  report.x_LR = x_LR();
+  report.covariance_health = spmap::check_covariance(map_.covariance(), config_.covariance_tolerance);
+  report.should_ship = should_ship();  // step 10: the caller ships and resets
+  return report;
+}
+
+ScanReport LocalMap::process_scan(const LaserScan& scan) {
+  return update(scan.utime, scan.odometry, extract_segments(scan, config_.extraction));  // step 2
+}
+
+// ---------------------------------------------------------------------------
+// Step 3: pair every observation with every map segment it may be (no
+// nearest-neighbour rule: one observation may pair several segments).
+
+std::vector<LocalMap::Candidate> LocalMap::pair_observations(const std::vector<ObservedSegment>& observations,
+                                                             ScanReport& report) const {
+  std::vector<Candidate> candidates;
+  if (observations.empty()) return candidates;
+  const Pose2 x_LR_hat = x_LR();
+  std::vector<Pose2> x_LE(observations.size());
+  for (std::size_t i = 0; i < observations.size(); ++i) x_LE[i] = compose(x_LR_hat, observations[i].location);
+
+  for (const spmap::Entity& s : map_.entities()) {
+    if (s.kind != EntityKind::kSegment) continue;
+    const Pose2 x_SL = inverse(s.location);
+    for (std::size_t i = 0; i < observations.size(); ++i) {
+      ++report.pairings_tried;
+      // Overlap of the extents first: it is cheap and both tests must pass.
+      const Pose2 x_SE = compose(x_SL, x_LE[i]);
+      if (spmap::extent_overlap(x_SE, s.length_m, observations[i].length_m) <= -config_.overlap_gap_tolerance_m) {
+        ++report.pairings_rejected_overlap;
+        continue;
+      }
+      // Individual compatibility, chi2(2) (paper eq. 8; DESIGN §4.3).
+      spmap::ImplicitMeasurement m = local_map::pairing_measurement(map_, s.id, robot_, observations[i]);
+      const spmap::CompatibilityTest test = spmap::individual_compatibility(
+          map_, m, config_.pairing_alpha, config_.careful_inverse_tolerance);
+      if (!test.passed) {
+        ++report.pairings_rejected_individual;
+        continue;
+      }
+      ++report.pairings_accepted_individual;
+      candidates.push_back({{i, s.id, test.distance2}, std::move(m)});
+    }
+  }
+  return candidates;
+}
+
+// ---------------------------------------------------------------------------
+// Steps 4–5: incremental joint compatibility (best individual distance first),
+// then one EKF update with all compatible pairings through the careful inversion.
+
+std::vector<LocalMap::Pairing> LocalMap::joint_update(std::vector<Candidate> candidates, ScanReport& report) {
+  std::vector<Pairing> pairings;
+  if (candidates.empty()) return pairings;
+  std::stable_sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+    return a.pairing.distance2 < b.pairing.distance2;
+  });
+  std::vector<spmap::ImplicitMeasurement> measurements;
+  measurements.reserve(candidates.size());
+  for (Candidate& c : candidates) measurements.push_back(std::move(c.measurement));
+
+  const std::vector<std::size_t> kept = spmap::incremental_joint_compatibility(
+      map_, measurements, config_.joint_alpha, config_.careful_inverse_tolerance);
+  report.pairings_accepted_joint = static_cast<int>(kept.size());
+  report.pairings_rejected_joint = static_cast<int>(candidates.size() - kept.size());
+  if (kept.empty()) return pairings;
+
+  std::vector<spmap::ImplicitMeasurement> compatible;
+  compatible.reserve(kept.size());
+  for (std::size_t k : kept) {
+    compatible.push_back(std::move(measurements[k]));
+    pairings.push_back(candidates[k].pairing);
+  }
+  // Eq. (9) with the reduced innovation (DESIGN §6); folds p̂ into every location.
+  const spmap::UpdateReport update =
+      spmap::ekf_update(map_, compatible, config_.careful_inverse_tolerance);
+  report.update_rows = update.rows;
+  report.update_rows_dropped = update.rows_dropped;
+  return pairings;
+}
+
+// ---------------------------------------------------------------------------
+// Step 6: geometric update. The EKF corrects only the lateral and angular
+// errors; the end points come from projecting each paired observation on its
+// (updated) map segment, moving the segment's frame with the dx rule (DESIGN §3).
+
+void LocalMap::geometric_update(const std::vector<ObservedSegment>& observations,
+                                const std::vector<Pairing>& pairings, ScanReport& report) {
+  std::set<EntityId> extended;
+  for (const Pairing& p : pairings) {
+    const ObservedSegment& e = observations[p.observation];
+    const Pose2 x_SE = local_map::observation_in_segment(map_, p.segment, robot_, e);
+    const spmap::Interval seen = spmap::project_extent(x_SE, e.length_m);
+    const double half = 0.5 * map_.entity(p.segment).length_m;
+    if (seen.min >= -half && seen.max <= half) continue;
+    spmap::extend_segment(map_, p.segment, {std::min(seen.min, -half), std::max(seen.max, half)});
+    extended.insert(p.segment);
+  }
+  report.segments_extended = static_cast<int>(extended.size());
+}
+
+// ---------------------------------------------------------------------------
+// Step 7: map segments that matched one observation are one wall: fuse each
+// into the oldest of them (ids grow with age).
+
+void LocalMap::fuse_multiple_matches(const std::vector<Pairing>& pairings, ScanReport& report) {
+  std::map<std::size_t, std::vector<EntityId>> by_observation;
+  for (const Pairing& p : pairings) by_observation[p.observation].push_back(p.segment);
+
+  std::unordered_map<EntityId, EntityId> fused_into;
+  const auto resolve = [&fused_into](EntityId id) {
+    for (auto it = fused_into.find(id); it != fused_into.end(); it = fused_into.find(id)) id = it->second;
+    return id;
+  };
+  for (auto& [observation, segments] : by_observation) {
+    if (segments.size() < 2) continue;
+    std::vector<EntityId> live;
+    for (EntityId s : segments) live.push_back(resolve(s));
+    std::sort(live.begin(), live.end());
+    live.erase(std::unique(live.begin(), live.end()), live.end());
+    const EntityId keep = live.front();
+    for (std::size_t k = 1; k < live.size(); ++k) {
+      if (spmap::fuse_segments(map_, keep, live[k], config_.fusion_alpha)) {
+        fused_into[live[k]] = keep;
+        // The fusion's perfect constraint fixes their relative angle too.
+        join_groups(keep, live[k]);
+        ++report.segments_fused;
+      } else {
+        ++report.fusions_rejected;
+      }
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Step 8: observations without any individually compatible pairing are new
+// walls. Observations whose pairings were all rejected by the joint test are
+// ambiguous (they fit the map somewhere, but not with the rest of the scan):
+// they are dropped for this scan rather than duplicated as new segments.
+
+std::vector<EntityId> LocalMap::add_unpaired(const std::vector<ObservedSegment>& observations,
+                                             const std::vector<bool>& had_candidate,
+                                             const std::vector<Pairing>& pairings, ScanReport& report) {
+  std::vector<bool> paired(observations.size(), false);
+  for (const Pairing& p : pairings) paired[p.observation] = true;
+  std::vector<EntityId> added;
+  for (std::size_t i = 0; i < observations.size(); ++i) {
+    if (paired[i]) continue;
+    if (had_candidate[i]) {
+      ++report.observations_discarded;
+      continue;
+    }
+    added.push_back(add_observation(observations[i]));
+  }
+  report.segments_added = static_cast<int>(added.size());
+  return added;
+}
+
+EntityId LocalMap::add_observation(const ObservedSegment& observation) {
+  const local_map::AdditionJacobians aj = local_map::addition_jacobians(x_LR(), observation.location);
+  const EntityId id = map_.add(EntityKind::kSegment, aj.x_LS, std::nullopt, observation.length_m);
+  // p_S = J_R p_R + J_E p_E (DESIGN §4.8): the robot part carries the
+  // correlations, the observation noise is independent of the state.
+  map_.replace_perturbation(id, {{robot_, Eigen::MatrixXd(aj.J_R)}});
+  const Eigen::Index off = map_.entity(id).offset;
+  map_.mutable_covariance().block<2, 2>(off, off) += aj.J_E * observation.covariance * aj.J_E.transpose();
+  group_parent_[id] = id;
+  return id;
+}
+
+// ---------------------------------------------------------------------------
+// Step 9: perfect angular constraints (paper §III.A; DESIGN §4.9) between each
+// new segment and the nearly parallel / perpendicular others, Mahalanobis-gated
+// (chi2(1)), jointly checked, and applied in one update through the careful
+// inversion (they make P singular).
+
+void LocalMap::apply_constraints(const std::vector<EntityId>& added, ScanReport& report) {
+  if (added.empty()) return;
+  // One representative per group (the first member in state order): a segment's
+  // angle relative to every member of a group is the same up to a known multiple
+  // of pi/2, so one row per group carries all the information (the others would
+  // be dropped by the careful inversion) and the gate gives the same distance.
+  std::vector<EntityId> representatives;
+  std::set<EntityId> groups_seen;
+  for (const spmap::Entity& e : map_.entities()) {
+    if (e.kind != EntityKind::kSegment) continue;
+    if (groups_seen.insert(group_of(e.id)).second) representatives.push_back(e.id);
+  }
+
+  struct ConstraintCandidate {
+    EntityId a;
+    EntityId b;
+    double distance2;
+    spmap::ImplicitMeasurement measurement;
+  };
+  std::vector<ConstraintCandidate> candidates;
+  for (EntityId n : added) {
+    const double phi_n = map_.root_location(n).phi;
+    // New segments are singleton groups appended in order, so "before n in state
+    // order" visits the old groups and the earlier new segments: each pair once.
+    for (EntityId r : representatives) {
+      if (r >= n) break;
+      if (group_of(r) == group_of(n)) continue;
+      const double relative = wrap_angle(phi_n - map_.root_location(r).phi);
+      const double target = local_map::nearest_right_angle(relative);
+      if (std::abs(wrap_angle(relative - target)) > config_.constraint_max_angle_rad) continue;
+      ++report.constraints_tried;
+      spmap::ImplicitMeasurement m = local_map::angular_constraint(map_, r, n, target);
+      const spmap::CompatibilityTest test = spmap::individual_compatibility(
+          map_, m, config_.constraint_alpha, config_.careful_inverse_tolerance);
+      if (!test.passed) {
+        ++report.constraints_rejected_individual;
+        continue;
+      }
+      candidates.push_back({r, n, test.distance2, std::move(m)});
+    }
+  }
+  if (candidates.empty()) return;
+
+  std::stable_sort(candidates.begin(), candidates.end(),
+                   [](const ConstraintCandidate& x, const ConstraintCandidate& y) { return x.distance2 < y.distance2; });
+  std::vector<spmap::ImplicitMeasurement> measurements;
+  measurements.reserve(candidates.size());
+  for (ConstraintCandidate& c : candidates) measurements.push_back(std::move(c.measurement));
+  const std::vector<std::size_t> kept = spmap::incremental_joint_compatibility(
+      map_, measurements, config_.constraint_alpha, config_.careful_inverse_tolerance);
+  report.constraints_rejected_joint = static_cast<int>(candidates.size() - kept.size());
+  if (kept.empty()) return;
+
+  std::vector<spmap::ImplicitMeasurement> applied;
+  applied.reserve(kept.size());
+  for (std::size_t k : kept) applied.push_back(std::move(measurements[k]));
+  const spmap::UpdateReport update = spmap::ekf_update(map_, applied, config_.careful_inverse_tolerance);
+  report.constraints_applied = update.rows;
+  report.constraint_rows_dropped = update.rows_dropped;
+  for (std::size_t k : kept) join_groups(candidates[k].a, candidates[k].b);
+}
+
+EntityId LocalMap::group_of(EntityId id) {
+  auto it = group_parent_.find(id);
+  if (it == group_parent_.end()) {
+    group_parent_.emplace(id, id);
+    return id;
+  }
+  EntityId root = id;
+  while (group_parent_.at(root) != root) root = group_parent_.at(root);
+  // Path compression.
+  while (group_parent_.at(id) != root) {
+    const EntityId next = group_parent_.at(id);
+    group_parent_[id] = root;
+    id = next;
+  }
+  return root;
+}
+
+void LocalMap::join_groups(EntityId a, EntityId b) {
+  const EntityId ra = group_of(a);
+  const EntityId rb = group_of(b);
+  if (ra != rb) group_parent_[std::max(ra, rb)] = std::min(ra, rb);
+}
+
+// ---------------------------------------------------------------------------
+// Step 10: ship policy.
+
+bool LocalMap::should_ship() const {
+  return span_m_ > config_.ship_distance_m || num_segments() > config_.max_segments;
+}
+
+LocalMapSnapshot LocalMap::snapshot() const {
+  LocalMapSnapshot out;
+  out.robot_id = robot_id_;
+  out.seq = seq_;
+  out.first_utime = first_utime_.value_or(last_utime_);
+  out.last_utime = last_utime_;
+  out.x_LR = x_LR();
+  // Covariance of (p_R, p_S1, ..., p_Sk) with the robot first, whatever the state order.
+  std::vector<Eigen::Index> rows;
+  rows.reserve(static_cast<std::size_t>(map_.dimension()));
+  const Eigen::Index robot_offset = map_.entity(robot_).offset;
+  for (Eigen::Index k = 0; k < 3; ++k) rows.push_back(robot_offset + k);
+  for (const spmap::Entity& e : map_.entities()) {
+    if (e.kind != EntityKind::kSegment) continue;
+    out.segments.push_back({e.location, e.length_m});
+    rows.push_back(e.offset);
+    rows.push_back(e.offset + 1);
+  }
+  const Eigen::Index n = static_cast<Eigen::Index>(rows.size());
+  out.covariance.resize(n, n);
+  const Eigen::MatrixXd& P = map_.covariance();
+  for (Eigen::Index j = 0; j < n; ++j) {
+    for (Eigen::Index i = 0; i < n; ++i) out.covariance(i, j) = P(rows[static_cast<std::size_t>(i)], rows[static_cast<std::size_t>(j)]);
+  }
+  out.scan_poses = scan_poses_;
+  return out;
+}
+
+void LocalMap::reset() {
+  // Paper §II.C: the new local map starts at position 0 with covariance 0.
+  const bool had_scans = first_utime_.has_value();
+  map_.clear();
+  robot_ = map_.add(EntityKind::kRobot, Pose2());
+  group_parent_.clear();
+  scan_poses_.clear();
+  span_m_ = 0.0;
+  ++seq_;
+  first_utime_ = had_scans ? std::optional<int64_t>(last_utime_) : std::nullopt;
+}
+
+}  // namespace lmf

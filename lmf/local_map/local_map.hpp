@@ -1,0 +1,166 @@
+// The robot's EKF local map (paper §II.B; DESIGN §4): the robot R and the wall
+// segments it has seen, all relative to the local frame L (the robot's pose when
+// the map began), with their joint covariance.
+//
+// One call of update() runs the ten steps of DESIGN §4 for one scan:
+//   1 predict with odometry, (2 extraction: done by the caller or process_scan),
+//   3 pair observations with map segments (individual chi2 + extent overlap),
+//   4 incremental joint compatibility and one EKF update with all compatible
+//     pairings, 5 through the careful inversion, 6 geometric update of the paired
+//   segments' end points, 7 fusion of map segments that matched one observation,
+//   8 addition of unpaired observations, 9 perfect angular constraints between
+//   new segments and nearly parallel/perpendicular existing ones, and
+//   10 the ship policy (should_ship / snapshot / reset).
+//
+// Units: metres, radians; time stamps in microseconds (from the data, never the
+// wall clock). Not thread-safe; all methods are synchronous.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <unordered_map>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "lmf/geometry/pose2.hpp"
+#include "lmf/local_map/local_map_config.hpp"
+#include "lmf/local_map/local_map_snapshot.hpp"
+#include "lmf/scan/laser_scan.hpp"
+#include "lmf/scan/observed_segment.hpp"
+#include "lmf/spmap/covariance_check.hpp"
+#include "lmf/spmap/ekf.hpp"
+#include "lmf/spmap/stochastic_map.hpp"
+
+namespace lmf {
+
+// What one update() did, for status messages and tests (no timing: callers time it).
+struct ScanReport {
+  int64_t utime = 0;
+  int observations = 0;           // observations given (after extraction)
+  int observations_rejected = 0;  // skipped as malformed (non-finite, bad covariance, length <= 0)
+  int map_segments_before = 0;
+
+  // Step 3: every (observation, map segment) combination is a tried pairing; the
+  // overlap test runs first, then the individual chi2(2) test on those that overlap.
+  int pairings_tried = 0;
+  int pairings_rejected_overlap = 0;
+  int pairings_rejected_individual = 0;
+  int pairings_accepted_individual = 0;
+  // Step 4: incremental joint compatibility over the individually accepted ones.
+  int pairings_rejected_joint = 0;
+  int pairings_accepted_joint = 0;
+  // Step 5: rows of the stacked update and those the careful inversion dropped.
+  int update_rows = 0;
+  int update_rows_dropped = 0;
+
+  int segments_extended = 0;       // step 6: paired map segments whose extent grew
+  int segments_fused = 0;          // step 7: map segments removed by fusion into another
+  int fusions_rejected = 0;        // step 7: fusion candidates whose constraint failed chi2(2)
+  int segments_added = 0;          // step 8
+  int observations_discarded = 0;  // step 8: all their pairings were rejected by JC: neither paired nor added
+
+  // Step 9.
+  int constraints_tried = 0;          // candidate pairs within constraint_max_angle_rad
+  int constraints_rejected_individual = 0;
+  int constraints_rejected_joint = 0;
+  int constraints_applied = 0;        // rows given to the update
+  int constraint_rows_dropped = 0;    // of those, dropped by the careful inversion (redundant)
+
+  int map_segments = 0;  // after the scan
+  Pose2 x_LR;            // robot pose estimate after the scan
+  spmap::CovarianceHealth covariance_health;
+  bool should_ship = false;
+};
+
+class LocalMap {
+ public:
+  // Throws std::invalid_argument if the config is invalid.
+  explicit LocalMap(const LocalMapConfig& config = {}, int robot_id = 0);
+
+  // One scan with already extracted observations (x_RE in the robot frame).
+  // `odometry` is x_OR, the robot pose in the odometry frame read with the scan;
+  // the first call only sets the odometry reference (no prediction). Malformed
+  // observations are skipped and counted. Throws std::invalid_argument (state
+  // unchanged) for a non-finite odometry pose.
+  ScanReport update(int64_t utime, const Pose2& odometry, const std::vector<ObservedSegment>& observations);
+
+  // Extracts segments from the scan with config().extraction, then update().
+  ScanReport process_scan(const LaserScan& scan);
+
+  // Step 1 alone, with the odometry increment u = between(odom_prev, odom_now)
+  // (m, rad). update() calls it; public for tests and experiments.
+  void predict(const Pose2& u);
+
+  // Step 10: true when span_m() > ship_distance_m or the map holds more than max_segments.
+  bool should_ship() const;
+  // Robot path length since the map began (m): the sum of the odometry step lengths.
+  double span_m() const { return span_m_; }
+
+  // The finished map: robot pose, segments in state order, covariance of
+  // (p_R, p_S1, ..., p_Sk), scan poses.
+  LocalMapSnapshot snapshot() const;
+  // Starts a new local map at the robot's current pose: pose 0, covariance 0, no
+  // segments, seq + 1, first_utime = the last scan's time. The odometry reference
+  // is kept, so the next prediction uses the motion since the last scan.
+  void reset();
+
+  const LocalMapConfig& config() const { return config_; }
+  int robot_id() const { return robot_id_; }
+  int64_t seq() const { return seq_; }
+  const spmap::StochasticMap& map() const { return map_; }
+  spmap::EntityId robot() const { return robot_; }
+  Pose2 x_LR() const;
+  Eigen::Matrix3d robot_covariance() const;
+  std::size_t num_segments() const;
+  std::vector<spmap::EntityId> segment_ids() const;  // state order
+
+  // For tests and tools that build maps directly: adds a segment with the given
+  // location in L, length and covariance of its perturbation (uncorrelated with
+  // the rest). Throws std::invalid_argument for a bad length or covariance size.
+  spmap::EntityId add_segment_for_test(const Pose2& x_LS, double length_m, const Eigen::Matrix2d& covariance);
+
+ private:
+  // An observation paired with a map segment (steps 3–7).
+  struct Pairing {
+    std::size_t observation = 0;
+    spmap::EntityId segment = 0;
+    double distance2 = 0.0;  // individual Mahalanobis distance (squared)
+  };
+  struct Candidate {
+    Pairing pairing;
+    spmap::ImplicitMeasurement measurement;
+  };
+
+  std::vector<Candidate> pair_observations(const std::vector<ObservedSegment>& observations,
+                                           ScanReport& report) const;
+  std::vector<Pairing> joint_update(std::vector<Candidate> candidates, ScanReport& report);
+  void geometric_update(const std::vector<ObservedSegment>& observations, const std::vector<Pairing>& pairings,
+                        ScanReport& report);
+  void fuse_multiple_matches(const std::vector<Pairing>& pairings, ScanReport& report);
+  std::vector<spmap::EntityId> add_unpaired(const std::vector<ObservedSegment>& observations,
+                                            const std::vector<bool>& had_candidate,
+                                            const std::vector<Pairing>& pairings, ScanReport& report);
+  void apply_constraints(const std::vector<spmap::EntityId>& added, ScanReport& report);
+  spmap::EntityId add_observation(const ObservedSegment& observation);
+
+  // Groups of segments whose relative angles are perfectly known (joined by
+  // applied constraints or fusions): one member of a group stands for all in
+  // step 9, because a constraint to another member would repeat the same row.
+  spmap::EntityId group_of(spmap::EntityId id);
+  void join_groups(spmap::EntityId a, spmap::EntityId b);
+
+  LocalMapConfig config_;
+  int robot_id_;
+  int64_t seq_ = 0;
+  spmap::StochasticMap map_;
+  spmap::EntityId robot_ = 0;
+  std::optional<Pose2> odometry_reference_;
+  std::optional<int64_t> first_utime_;
+  int64_t last_utime_ = 0;
+  double span_m_ = 0.0;
+  std::vector<ScanPose> scan_poses_;
+  std::unordered_map<spmap::EntityId, spmap::EntityId> group_parent_;
+};
+
+}  // namespace lmf

@@ -1,0 +1,54 @@
+#include "lmf/local_map/local_map_config.hpp"
+
+#include <cmath>
+#include <numbers>
+#include <sstream>
+#include <stdexcept>
+
+namespace lmf {
+namespace {
+
+template <typename T>
+void require(bool ok, const char* field, T value, const char* requirement) {
+  if (ok) return;
+  std::ostringstream msg;
+  msg << "LocalMapConfig." << field << " = " << value << " is invalid: it must be " << requirement;
+  throw std::invalid_argument(msg.str());
+}
+
+bool finite_nonnegative(double v) { return std::isfinite(v) && v >= 0.0; }
+bool finite_positive(double v) { return std::isfinite(v) && v > 0.0; }
+bool probability(double v) { return std::isfinite(v) && v > 0.0 && v < 1.0; }
+
+}  // namespace
+
+void LocalMapConfig::validate() const {
+  require(finite_nonnegative(odom_translation_noise_ratio), "odom_translation_noise_ratio",
+          odom_translation_noise_ratio, "finite and >= 0");
+  require(finite_nonnegative(odom_rotation_noise_ratio), "odom_rotation_noise_ratio", odom_rotation_noise_ratio,
+          "finite and >= 0");
+  require(finite_nonnegative(odom_drift_rad_per_m), "odom_drift_rad_per_m", odom_drift_rad_per_m,
+          "finite and >= 0");
+  require(finite_nonnegative(odom_noise_floor_m), "odom_noise_floor_m", odom_noise_floor_m, "finite and >= 0");
+  require(finite_nonnegative(odom_noise_floor_rad), "odom_noise_floor_rad", odom_noise_floor_rad,
+          "finite and >= 0");
+  require(probability(pairing_alpha), "pairing_alpha", pairing_alpha, "in (0, 1)");
+  require(finite_nonnegative(overlap_gap_tolerance_m), "overlap_gap_tolerance_m", overlap_gap_tolerance_m,
+          "finite and >= 0");
+  require(probability(joint_alpha), "joint_alpha", joint_alpha, "in (0, 1)");
+  require(std::isfinite(careful_inverse_tolerance) && careful_inverse_tolerance > 0.0 &&
+              careful_inverse_tolerance < 1.0,
+          "careful_inverse_tolerance", careful_inverse_tolerance, "in (0, 1)");
+  require(probability(fusion_alpha), "fusion_alpha", fusion_alpha, "in (0, 1)");
+  require(std::isfinite(constraint_max_angle_rad) && constraint_max_angle_rad >= 0.0 &&
+              constraint_max_angle_rad < std::numbers::pi / 4.0,
+          "constraint_max_angle_rad", constraint_max_angle_rad, "in [0, pi/4)");
+  require(probability(constraint_alpha), "constraint_alpha", constraint_alpha, "in (0, 1)");
+  require(finite_positive(ship_distance_m), "ship_distance_m", ship_distance_m, "finite and > 0");
+  require(max_segments > 0, "max_segments", max_segments, "> 0");
+  require(finite_nonnegative(covariance_tolerance), "covariance_tolerance", covariance_tolerance,
+          "finite and >= 0");
+  extraction.validate();
+}
+
+}  // namespace lmf

@@ -1,0 +1,71 @@
+// Configuration of the robot local map (DESIGN §4; paper §II.B), with units and
+// documented defaults. validate() throws std::invalid_argument naming the field.
+#pragma once
+
+#include <cstddef>
+
+#include "lmf/scan/segment_extraction.hpp"
+
+namespace lmf {
+
+struct LocalMapConfig {
+  // --- Step 1: odometry noise. The increment u = between(odom_prev, odom_now)
+  // has its perturbation p_u (in the frame of the new pose, u_true = û ⊕ p_u)
+  // Gaussian with independent standard deviations proportional to the motion
+  // of that step (paper §IV: 6–8 % error; datasets/README.md: 8 % of translation,
+  // 8 % of rotation, 0.01 rad per metre):
+  //   sigma_x = sigma_y = translation_ratio · d            (d = |(û.x, û.y)|, m)
+  //   sigma_phi = rotation_ratio · |û.phi| + drift · d
+  // each then combined in quadrature with a floor so a standing robot's
+  // covariance stays well defined: sigma² ← sigma² + floor².
+  double odom_translation_noise_ratio = 0.08;  // m of std per m travelled (>= 0)
+  double odom_rotation_noise_ratio = 0.08;     // rad of std per rad turned (>= 0)
+  double odom_drift_rad_per_m = 0.01;          // rad of heading std per m travelled (>= 0)
+  double odom_noise_floor_m = 0.001;           // std added to x and y of every step (m, >= 0)
+  double odom_noise_floor_rad = 0.0005;        // std added to the heading of every step (rad, >= 0)
+
+  // --- Step 3: pairing an observation E with a map segment S.
+  // Individual Mahalanobis test: d² < chi2inv(1 - pairing_alpha, 2).
+  double pairing_alpha = 0.01;
+  // Overlap test: E's extent projected on S's axis must overlap S's extent or
+  // leave a gap shorter than this (m). Larger than the laser's point spacing,
+  // smaller than a door.
+  double overlap_gap_tolerance_m = 0.3;
+
+  // --- Step 4: incremental joint compatibility, chi2 at the joint dof.
+  double joint_alpha = 0.01;
+
+  // --- Step 5 (and every inversion of an innovation covariance): careful
+  // inversion stops when the best pivot < tolerance · largest pivot (DESIGN §6).
+  double careful_inverse_tolerance = 1e-9;
+
+  // --- Step 7: two map segments that matched the same observation are fused
+  // when their perfect collinearity constraint passes chi2(2) at this alpha.
+  double fusion_alpha = 0.01;
+
+  // --- Step 9: perfect angular constraints between each new segment and the
+  // existing ones that are nearly parallel (0, pi) or perpendicular (±pi/2).
+  bool constraints_enabled = true;
+  // A candidate's estimated angle must be within this of a multiple of pi/2 (rad)...
+  double constraint_max_angle_rad = 0.2;
+  // ... and pass the Mahalanobis test d² < chi2inv(1 - constraint_alpha, 1).
+  double constraint_alpha = 0.01;
+
+  // --- Step 10: ship policy. The local map's span is the robot's path length
+  // since the map began (sum of the odometry step lengths, m): the quantity the
+  // odometry error — and so the linearisation error — grows with.
+  double ship_distance_m = 10.0;   // should_ship() when span > this (m, > 0)
+  std::size_t max_segments = 100;  // ... or when the map holds more segments than this (> 0)
+
+  // --- Covariance supervision after every scan: symmetric and PSD within this
+  // tolerance (relative to max(1, max |P_ii|)).
+  double covariance_tolerance = 1e-9;
+
+  // Segment extraction used by LocalMap::process_scan (step 2).
+  ExtractionConfig extraction;
+
+  // Throws std::invalid_argument naming the first invalid field and its value.
+  void validate() const;
+};
+
+}  // namespace lmf

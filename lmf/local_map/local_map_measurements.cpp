@@ -1,0 +1,110 @@
+#include "lmf/local_map/local_map_measurements.hpp"
+
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "lmf/spmap/relative_location.hpp"
+
+namespace lmf::local_map {
+namespace {
+
+using spmap::ChainLink;
+using spmap::EntityKind;
+
+void require_kind(const spmap::StochasticMap& map, spmap::EntityId id, EntityKind kind, const char* where) {
+  if (!map.contains(id) || map.entity(id).kind != kind) {
+    throw std::invalid_argument(std::string(where) + ": entity " + std::to_string(id) + " is not a " +
+                                (kind == EntityKind::kSegment ? "segment" : "robot") + " of the map");
+  }
+}
+
+}  // namespace
+
+PredictionJacobians prediction_jacobians(const Pose2& x_LR, const Pose2& u) {
+  PredictionJacobians out;
+  out.x_LR = compose(x_LR, u);
+  // p_R' = ⊖x̂_LR' ⊕ (x̂_LR ⊕ p_R) ⊕ (û ⊕ p_u): a chain whose value is the identity
+  // at p = 0, so its Jacobians are those of the new perturbation (DESIGN §4.1).
+  const std::vector<ChainLink> links = {
+      {inverse(out.x_LR), EntityKind::kFrame, false, std::nullopt},
+      {x_LR, EntityKind::kRobot, false, std::nullopt},
+      {u, EntityKind::kFrame, false, std::nullopt},
+  };
+  const spmap::ChainValue chain = spmap::evaluate_chain(links);
+  out.J_R = chain.jacobians[1];
+  out.J_u = chain.jacobians[2];
+  return out;
+}
+
+Eigen::Matrix3d odometry_noise(const Pose2& u, const LocalMapConfig& config) {
+  // Proportional odometry error (paper §IV; LocalMapConfig, step 1).
+  const double d = std::hypot(u.x, u.y);
+  const double sigma_xy = config.odom_translation_noise_ratio * d;
+  const double sigma_phi = config.odom_rotation_noise_ratio * std::abs(u.phi) + config.odom_drift_rad_per_m * d;
+  const double floor_m2 = config.odom_noise_floor_m * config.odom_noise_floor_m;
+  const double floor_rad2 = config.odom_noise_floor_rad * config.odom_noise_floor_rad;
+  Eigen::Matrix3d Q = Eigen::Matrix3d::Zero();
+  Q(0, 0) = sigma_xy * sigma_xy + floor_m2;
+  Q(1, 1) = sigma_xy * sigma_xy + floor_m2;
+  Q(2, 2) = sigma_phi * sigma_phi + floor_rad2;
+  return Q;
+}
+
+spmap::ImplicitMeasurement pairing_measurement(const spmap::StochasticMap& map, spmap::EntityId segment,
+                                               spmap::EntityId robot, const ObservedSegment& observation) {
+  require_kind(map, segment, EntityKind::kSegment, "pairing_measurement");
+  require_kind(map, robot, EntityKind::kRobot, "pairing_measurement");
+  // Paper eqs. (5)–(7) in the local frame: h = B_S(⊖x_LS ⊕ x_LR ⊕ x_RE), with S
+  // inverted, R, and E whose perturbation is observation noise, not state.
+  std::vector<ChainLink> links = spmap::chain_between(map, segment, robot);
+  links.push_back({observation.location, EntityKind::kSegment, false, std::nullopt});
+  std::vector<Eigen::MatrixXd> noise;
+  noise.reserve(links.size());
+  for (const ChainLink& link : links) {
+    const int n = spmap::dof(link.kind);
+    noise.push_back(link.entity ? Eigen::MatrixXd::Zero(n, n) : Eigen::MatrixXd(observation.covariance));
+  }
+  return spmap::measurement_from_chain(links, {1, 2}, noise);
+}
+
+Pose2 observation_in_segment(const spmap::StochasticMap& map, spmap::EntityId segment, spmap::EntityId robot,
+                             const ObservedSegment& observation) {
+  return compose(between(map.root_location(segment), map.root_location(robot)), observation.location);
+}
+
+AdditionJacobians addition_jacobians(const Pose2& x_LR, const Pose2& x_RE) {
+  AdditionJacobians out;
+  out.x_LS = compose(x_LR, x_RE);
+  // p_S = B_S(⊖x̂_LS ⊕ (x̂_LR ⊕ p_R) ⊕ (x_RE ⊕ B_Eᵀ p_E)), identity at p = 0 (DESIGN §4.8).
+  const std::vector<ChainLink> links = {
+      {inverse(out.x_LS), EntityKind::kFrame, false, std::nullopt},
+      {x_LR, EntityKind::kRobot, false, std::nullopt},
+      {x_RE, EntityKind::kSegment, false, std::nullopt},
+  };
+  const spmap::ChainValue chain = spmap::evaluate_chain(links);
+  out.J_R = chain.jacobians[1].bottomRows<2>();
+  out.J_E = chain.jacobians[2].bottomRows<2>();
+  return out;
+}
+
+spmap::ImplicitMeasurement angular_constraint(const spmap::StochasticMap& map, spmap::EntityId a,
+                                              spmap::EntityId b, double target_rad) {
+  require_kind(map, a, EntityKind::kSegment, "angular_constraint");
+  require_kind(map, b, EntityKind::kSegment, "angular_constraint");
+  // DESIGN §4.9: a perfect (R = 0) constraint on the relative angle only.
+  const std::vector<ChainLink> links = spmap::chain_between(map, a, b);
+  Eigen::VectorXd target(1);
+  target(0) = target_rad;
+  return spmap::measurement_from_chain(links, {2}, {}, target);
+}
+
+double nearest_right_angle(double angle_rad) {
+  constexpr double kHalfPi = std::numbers::pi / 2.0;
+  const double quarter_turns = std::round(wrap_angle(angle_rad) / kHalfPi);
+  return wrap_angle(quarter_turns * kHalfPi);
+}
+
+}  // namespace lmf::local_map

@@ -1,0 +1,422 @@
+// The local map's steps on constructed cases (DESIGN §4): pairing, the other
+// face, fusion, perpendicular constraints, the frame shift, prediction, the ship
+// policy and snapshot/reset.
+#include "lmf/local_map/local_map.hpp"
+
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "lmf/local_map/local_map_measurements.hpp"
+#include "lmf/spmap/covariance_check.hpp"
+#include "lmf/spmap/segment_ops.hpp"
+#include "test_support.hpp"
+#include "wall_observation.hpp"
+
+namespace lmf {
+namespace {
+
+using spmap::EntityId;
+using testing::matrices_near;
+using testing::observe_wall;
+using testing::perturbed;
+
+constexpr double kPi = std::numbers::pi;
+constexpr int64_t kScanPeriodUs = 200000;
+
+// The lateral error of the physical point at x = a of a segment's frame and its
+// angular error are (1, a; 0, 1) p: used to compare covariances across frame shifts.
+Eigen::Matrix2d point_map(double a) {
+  Eigen::Matrix2d T;
+  T << 1.0, a, 0.0, 1.0;
+  return T;
+}
+
+TEST(LocalMapConfig, DefaultsAreValidAndBadFieldsAreNamed) {
+  EXPECT_NO_THROW(LocalMapConfig{}.validate());
+  const auto message_of = [](const LocalMapConfig& c) {
+    try {
+      c.validate();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no exception");
+  };
+  LocalMapConfig c;
+  c.pairing_alpha = 1.5;
+  EXPECT_NE(message_of(c).find("pairing_alpha"), std::string::npos);
+  c = {};
+  c.odom_translation_noise_ratio = -0.1;
+  EXPECT_NE(message_of(c).find("odom_translation_noise_ratio"), std::string::npos);
+  c = {};
+  c.ship_distance_m = 0.0;
+  EXPECT_NE(message_of(c).find("ship_distance_m"), std::string::npos);
+  c = {};
+  c.max_segments = 0;
+  EXPECT_NE(message_of(c).find("max_segments"), std::string::npos);
+  c = {};
+  c.constraint_max_angle_rad = 1.0;
+  EXPECT_NE(message_of(c).find("constraint_max_angle_rad"), std::string::npos);
+  c = {};
+  c.extraction.min_points = 1;
+  EXPECT_NE(message_of(c).find("min_points"), std::string::npos);
+  c = {};
+  c.overlap_gap_tolerance_m = std::nan("");
+  EXPECT_THROW(LocalMap{c}, std::invalid_argument);
+}
+
+TEST(LocalMapPrediction, CovarianceGrowsWithMotion) {
+  LocalMap small;
+  LocalMap large;
+  small.predict(Pose2(0.5, 0.0, 0.1));
+  large.predict(Pose2(1.0, 0.0, 0.2));
+  EXPECT_TRUE(is_near(small.x_LR(), Pose2(0.5, 0.0, 0.1), 1e-12, 1e-12));
+  EXPECT_GT(small.robot_covariance().trace(), 0.0);
+  EXPECT_GT(large.robot_covariance().trace(), small.robot_covariance().trace());
+  // Every further step adds noise: P_RR grows (in the PSD order).
+  Eigen::Matrix3d before = small.robot_covariance();
+  for (int k = 0; k < 5; ++k) {
+    small.predict(Pose2(0.5, 0.02, 0.05));
+    const Eigen::Matrix3d after = small.robot_covariance();
+    EXPECT_GT(after.trace(), before.trace());
+    EXPECT_TRUE(spmap::check_covariance(after).ok());
+    before = after;
+  }
+  EXPECT_NEAR(small.span_m(), 0.5 + 5.0 * std::hypot(0.5, 0.02), 1e-12);
+}
+
+TEST(LocalMapPrediction, TransformsTheCrossCovariances) {
+  LocalMap lm;
+  lm.predict(Pose2(1.0, 0.0, 0.3));
+  const ObservedSegment e = observe_wall(lm.x_LR(), {0.0, 2.0}, {3.0, 2.0});
+  lm.update(0, Pose2(), {e});  // first call: sets the odometry reference only
+  ASSERT_EQ(lm.num_segments(), 1u);
+  const EntityId s = lm.segment_ids().front();
+  const Eigen::MatrixXd P_RS = lm.map().block(lm.robot(), s);
+  ASSERT_GT(P_RS.norm(), 0.0);
+
+  const Pose2 u(0.5, 0.1, -0.2);
+  const local_map::PredictionJacobians pj = local_map::prediction_jacobians(lm.x_LR(), u);
+  const Eigen::Matrix3d P_RR = lm.robot_covariance();
+  const Eigen::Matrix3d Q = local_map::odometry_noise(u, lm.config());
+  lm.update(kScanPeriodUs, u, {});
+  EXPECT_TRUE(matrices_near(lm.map().block(lm.robot(), s), pj.J_R * P_RS, 1e-12));
+  EXPECT_TRUE(matrices_near(lm.robot_covariance(), pj.J_R * P_RR * pj.J_R.transpose() +
+                                                       pj.J_u * Q * pj.J_u.transpose(),
+                            1e-12));
+}
+
+TEST(LocalMapPairing, WallSeenTwiceIsPairedAndTheMapDoesNotGrow) {
+  LocalMap lm;
+  const ScanReport r1 = lm.update(0, Pose2(), {observe_wall(Pose2(), {-1.0, 2.0}, {3.0, 2.0})});
+  EXPECT_EQ(r1.segments_added, 1);
+  EXPECT_EQ(r1.map_segments, 1);
+  ASSERT_TRUE(r1.covariance_health.ok());
+
+  const Pose2 x_LR_true(0.5, 0.0, 0.0);
+  const ObservedSegment e = perturbed(observe_wall(x_LR_true, {-0.5, 2.0}, {4.0, 2.0}), 0.004, 0.002);
+  const ScanReport r2 = lm.update(kScanPeriodUs, x_LR_true, {e});
+  EXPECT_EQ(r2.pairings_tried, 1);
+  EXPECT_EQ(r2.pairings_accepted_individual, 1);
+  EXPECT_EQ(r2.pairings_accepted_joint, 1);
+  EXPECT_EQ(r2.update_rows, 2);
+  EXPECT_EQ(r2.segments_added, 0);
+  EXPECT_EQ(r2.segments_extended, 1);
+  EXPECT_EQ(r2.map_segments, 1);
+  EXPECT_TRUE(r2.covariance_health.ok()) << r2.covariance_health.describe();
+  // The segment now covers both views, [-1, 4] along the wall.
+  const spmap::Entity& s = lm.map().entity(lm.segment_ids().front());
+  EXPECT_NEAR(s.length_m, 5.0, 0.05);
+  EXPECT_NEAR(s.location.transform_point({0.0, 0.0}).x(), 1.5, 0.05);
+  EXPECT_NEAR(s.location.y, 2.0, 0.02);
+  // The pairing corrected the robot towards the truth and shrank its covariance.
+  EXPECT_LT(lm.robot_covariance()(1, 1), local_map::odometry_noise(x_LR_true, lm.config())(1, 1));
+}
+
+TEST(LocalMapPairing, WallSeenFromTheOtherFaceIsNotPaired) {
+  LocalMap lm;
+  lm.update(0, Pose2(), {observe_wall(Pose2(), {-2.0, 2.0}, {6.0, 2.0})});
+  ASSERT_EQ(lm.num_segments(), 1u);
+  // The robot is now on the other side of the (thin) wall: the same line, the other face.
+  const Pose2 x_LR_true(0.5, 4.0, 0.0);
+  const ObservedSegment e = observe_wall(x_LR_true, {-2.0, 2.0}, {6.0, 2.0});
+  const ScanReport r = lm.update(kScanPeriodUs, x_LR_true, {e});
+  EXPECT_EQ(r.pairings_tried, 1);
+  EXPECT_EQ(r.pairings_rejected_overlap, 0);  // they overlap: the Mahalanobis test must reject
+  EXPECT_EQ(r.pairings_rejected_individual, 1);
+  EXPECT_EQ(r.pairings_accepted_individual, 0);
+  EXPECT_EQ(r.segments_added, 1);
+  EXPECT_EQ(r.map_segments, 2);
+  // The two faces point opposite ways (anti-parallel: the constraint step may tie them).
+  const std::vector<EntityId> ids = lm.segment_ids();
+  EXPECT_NEAR(std::abs(wrap_angle(lm.map().entity(ids[0]).location.phi - lm.map().entity(ids[1]).location.phi)),
+              kPi, 0.1);
+}
+
+TEST(LocalMapPairing, FarAwayCollinearObservationFailsTheOverlapTest) {
+  LocalMap lm;
+  lm.add_segment_for_test(Pose2(1.0, 2.0, kPi), 2.0, Eigen::Vector2d(1e-4, 1e-5).asDiagonal());
+  // Same line, 3 m beyond the end of the map segment.
+  const ScanReport r = lm.update(0, Pose2(), {observe_wall(Pose2(), {5.0, 2.0}, {7.0, 2.0})});
+  EXPECT_EQ(r.pairings_rejected_overlap, 1);
+  EXPECT_EQ(r.segments_added, 1);
+  EXPECT_EQ(r.map_segments, 2);
+}
+
+TEST(LocalMapFusion, CollinearSegmentsJoinedByOneObservationAreFused) {
+  LocalMap lm;
+  const Eigen::Matrix2d cov = Eigen::Vector2d(0.02 * 0.02, 0.01 * 0.01).asDiagonal();
+  // Two pieces of one wall at y = 2 (seen from below: direction -x), 1 m apart.
+  const EntityId first = lm.add_segment_for_test(Pose2(1.0, 2.01, kPi), 2.0, cov);
+  const EntityId second = lm.add_segment_for_test(Pose2(4.0, 1.99, kPi - 0.005), 2.0, cov);
+  const ScanReport r = lm.update(0, Pose2(), {observe_wall(Pose2(), {-0.5, 2.0}, {5.5, 2.0})});
+  EXPECT_EQ(r.pairings_accepted_individual, 2);
+  EXPECT_EQ(r.pairings_accepted_joint, 2);
+  EXPECT_EQ(r.segments_fused, 1);
+  EXPECT_EQ(r.fusions_rejected, 0);
+  EXPECT_EQ(r.segments_added, 0);
+  ASSERT_EQ(r.map_segments, 1);
+  EXPECT_TRUE(lm.map().contains(first));
+  EXPECT_FALSE(lm.map().contains(second));
+  const spmap::Entity& s = lm.map().entity(first);
+  // One segment covering both pieces and the observation: x in [-0.5, 5.5].
+  EXPECT_NEAR(s.length_m, 6.0, 0.02);
+  EXPECT_NEAR(s.location.x, 2.5, 0.02);
+  EXPECT_NEAR(s.location.y, 2.0, 0.01);
+  EXPECT_TRUE(r.covariance_health.ok()) << r.covariance_health.describe();
+  EXPECT_EQ(lm.snapshot().covariance.rows(), 5);
+}
+
+TEST(LocalMapConstraints, NearlyPerpendicularNewSegmentIsConstrained) {
+  LocalMap lm;
+  lm.update(0, Pose2(), {observe_wall(Pose2(), {-1.0, 2.0}, {3.0, 2.0})});
+  ASSERT_EQ(lm.num_segments(), 1u);
+  const EntityId wall = lm.segment_ids().front();
+
+  const Pose2 x_LR_true(0.5, 0.0, 0.0);
+  // The old wall again, and a new one at x = 4, fitted 0.6° off perpendicular.
+  const ObservedSegment seen_again = observe_wall(x_LR_true, {-0.5, 2.0}, {3.5, 2.0});
+  const ObservedSegment corner = perturbed(observe_wall(x_LR_true, {4.0, -1.0}, {4.0, 3.0}), 0.0, 0.01);
+  const ScanReport r = lm.update(kScanPeriodUs, x_LR_true, {seen_again, corner});
+  EXPECT_EQ(r.segments_added, 1);
+  EXPECT_EQ(r.constraints_tried, 1);
+  EXPECT_EQ(r.constraints_applied, 1);
+  EXPECT_EQ(r.constraint_rows_dropped, 0);
+  ASSERT_EQ(lm.num_segments(), 2u);
+  const EntityId added = lm.segment_ids().back();
+
+  // Exactly perpendicular now, and the relative angle is perfectly known.
+  const double relative = wrap_angle(lm.map().entity(added).location.phi - lm.map().entity(wall).location.phi);
+  EXPECT_NEAR(std::abs(relative), kPi / 2.0, 1e-9);
+  const Eigen::MatrixXd& P = lm.map().covariance();
+  const Eigen::Index ia = lm.map().entity(wall).offset + 1;
+  const Eigen::Index ib = lm.map().entity(added).offset + 1;
+  EXPECT_NEAR(P(ia, ia) + P(ib, ib) - 2.0 * P(ia, ib), 0.0, 1e-12 * P(ia, ia) + 1e-15);
+  // P is singular now, but still symmetric PSD.
+  EXPECT_TRUE(r.covariance_health.ok()) << r.covariance_health.describe();
+  EXPECT_TRUE(spmap::check_covariance(P).ok());
+
+  // A third wall parallel to the first: one constraint to the group, the row to
+  // the other member would be redundant and is never built.
+  const Pose2 x_LR_2(1.0, 0.0, 0.0);
+  const ScanReport r3 = lm.update(2 * kScanPeriodUs, x_LR_2,
+                                  {observe_wall(x_LR_2, {0.0, 2.0}, {3.5, 2.0}),
+                                   perturbed(observe_wall(x_LR_2, {-1.0, -2.0}, {3.0, -2.0}), 0.0, -0.008)});
+  EXPECT_EQ(r3.segments_added, 1);
+  EXPECT_EQ(r3.constraints_tried, 1);
+  EXPECT_EQ(r3.constraints_applied, 1);
+  const EntityId third = lm.segment_ids().back();
+  EXPECT_NEAR(std::abs(wrap_angle(lm.map().entity(third).location.phi - lm.map().entity(wall).location.phi)), kPi,
+              1e-9);
+  EXPECT_NEAR(std::abs(wrap_angle(lm.map().entity(third).location.phi - lm.map().entity(added).location.phi)),
+              kPi / 2.0, 1e-9);
+  EXPECT_TRUE(r3.covariance_health.ok()) << r3.covariance_health.describe();
+}
+
+TEST(LocalMapConstraints, TwoNewSegmentsOfOneScanAreConstrainedToEachOther) {
+  LocalMap lm;
+  const ScanReport r = lm.update(0, Pose2(), {observe_wall(Pose2(), {-1.0, 2.0}, {3.0, 2.0}),
+                                              perturbed(observe_wall(Pose2(), {4.0, -1.0}, {4.0, 3.0}), 0.0, 0.005)});
+  EXPECT_EQ(r.segments_added, 2);
+  EXPECT_EQ(r.constraints_applied, 1);
+  const std::vector<EntityId> ids = lm.segment_ids();
+  EXPECT_NEAR(std::abs(wrap_angle(lm.map().entity(ids[1]).location.phi - lm.map().entity(ids[0]).location.phi)),
+              kPi / 2.0, 1e-9);
+}
+
+TEST(LocalMapConstraints, SwitchOffAndMahalanobisGate) {
+  LocalMapConfig config;
+  config.constraints_enabled = false;
+  LocalMap off(config);
+  const std::vector<ObservedSegment> scan = {observe_wall(Pose2(), {-1.0, 2.0}, {3.0, 2.0}),
+                                             perturbed(observe_wall(Pose2(), {4.0, -1.0}, {4.0, 3.0}), 0.0, 0.01)};
+  const ScanReport r = off.update(0, Pose2(), scan);
+  EXPECT_EQ(r.constraints_tried, 0);
+  EXPECT_EQ(r.constraints_applied, 0);
+  const std::vector<EntityId> ids = off.segment_ids();
+  EXPECT_GT(std::abs(std::abs(wrap_angle(off.map().entity(ids[1]).location.phi -
+                                         off.map().entity(ids[0]).location.phi)) -
+                     kPi / 2.0),
+            0.005);
+
+  // 0.1 rad off perpendicular with 0.005 rad angular noise: within the angle
+  // window but far outside the chi2(1) gate.
+  LocalMap on;
+  const ScanReport r2 =
+      on.update(0, Pose2(), {observe_wall(Pose2(), {-1.0, 2.0}, {3.0, 2.0}),
+                             perturbed(observe_wall(Pose2(), {4.0, -1.0}, {4.0, 3.0}), 0.0, 0.1)});
+  EXPECT_EQ(r2.constraints_tried, 1);
+  EXPECT_EQ(r2.constraints_rejected_individual, 1);
+  EXPECT_EQ(r2.constraints_applied, 0);
+}
+
+TEST(LocalMapGeometricUpdate, FrameShiftKeepsTheCovarianceMeaning) {
+  // A segment correlated with the robot, as the local map builds them.
+  LocalMap lm;
+  lm.predict(Pose2(1.0, 0.2, 0.3));
+  lm.update(0, Pose2(), {observe_wall(lm.x_LR(), {0.0, 3.0}, {2.0, 3.0})});
+  const EntityId s = lm.segment_ids().front();
+  spmap::StochasticMap map = lm.map();
+  const double old_length = map.entity(s).length_m;
+  const Pose2 old_location = map.entity(s).location;
+  const Eigen::MatrixXd P_SS = map.block(s, s);
+  const Eigen::MatrixXd P_SR = map.block(s, lm.robot());
+
+  // Grow the segment by 1.5 m at its +x end: its frame moves by dx = 0.75 m.
+  spmap::extend_segment(map, s, {-0.5 * old_length, 0.5 * old_length + 1.5});
+  const double dx = 0.75;
+  EXPECT_NEAR(map.entity(s).length_m, old_length + 1.5, 1e-12);
+  EXPECT_TRUE(is_near(map.entity(s).location, compose(old_location, Pose2(dx, 0.0, 0.0)), 1e-12, 1e-12));
+  // The error of the same physical points (x = a in the old frame, a - dx in
+  // the new one) keeps its covariance and its correlation with the robot.
+  for (double a : {-1.0, 0.0, 0.4, 2.0}) {
+    const Eigen::Matrix2d T_old = point_map(a);
+    const Eigen::Matrix2d T_new = point_map(a - dx);
+    EXPECT_TRUE(matrices_near(T_new * map.block(s, s) * T_new.transpose(), T_old * P_SS * T_old.transpose(), 1e-12));
+    EXPECT_TRUE(matrices_near(T_new * map.block(s, lm.robot()), T_old * P_SR, 1e-12));
+  }
+}
+
+TEST(LocalMapShipPolicy, ShipsOnDistanceAndOnSize) {
+  LocalMapConfig config;
+  config.ship_distance_m = 2.0;
+  config.max_segments = 2;
+  LocalMap lm(config);
+  for (int k = 0; k <= 4; ++k) {
+    EXPECT_FALSE(lm.should_ship()) << k;
+    lm.update(k * kScanPeriodUs, Pose2(0.5 * k, 0.0, 0.0), {});
+  }
+  EXPECT_NEAR(lm.span_m(), 2.0, 1e-12);
+  EXPECT_FALSE(lm.should_ship());  // "more than" 2 m
+  const ScanReport r = lm.update(5 * kScanPeriodUs, Pose2(2.5, 0.0, 0.0), {});
+  EXPECT_TRUE(r.should_ship);
+  EXPECT_TRUE(lm.should_ship());
+
+  LocalMap crowded(config);
+  crowded.update(0, Pose2(), {observe_wall(Pose2(), {-1.0, 2.0}, {3.0, 2.0}),
+                              observe_wall(Pose2(), {-1.0, -2.0}, {3.0, -2.0})});
+  EXPECT_FALSE(crowded.should_ship());
+  crowded.update(kScanPeriodUs, Pose2(), {observe_wall(Pose2(), {6.0, 1.0}, {8.0, 4.0})});
+  EXPECT_EQ(crowded.num_segments(), 3u);
+  EXPECT_TRUE(crowded.should_ship());
+}
+
+TEST(LocalMapSnapshot, SnapshotAndResetRoundTrip) {
+  LocalMap lm(LocalMapConfig{}, 7);
+  std::vector<Pose2> odometry = {{0.0, 0.0, 0.0}, {0.5, 0.0, 0.02}, {1.0, 0.05, 0.03}};
+  for (std::size_t k = 0; k < odometry.size(); ++k) {
+    const Pose2& x = odometry[k];
+    lm.update(1000 + static_cast<int64_t>(k) * kScanPeriodUs, x,
+              {observe_wall(x, {-1.0, 2.0}, {4.0, 2.0}), observe_wall(x, {4.0, -1.0}, {4.0, 3.0})});
+  }
+  const LocalMapSnapshot snap = lm.snapshot();
+  EXPECT_EQ(snap.robot_id, 7);
+  EXPECT_EQ(snap.seq, 0);
+  EXPECT_EQ(snap.first_utime, 1000);
+  EXPECT_EQ(snap.last_utime, 1000 + 2 * kScanPeriodUs);
+  EXPECT_TRUE(is_near(snap.x_LR, lm.x_LR(), 0.0, 0.0));
+  ASSERT_EQ(snap.segments.size(), lm.num_segments());
+  ASSERT_EQ(snap.covariance.rows(), static_cast<Eigen::Index>(3 + 2 * snap.segments.size()));
+  // Robot first, then the segments in state order: the map's P (robot added first).
+  EXPECT_TRUE(matrices_near(snap.covariance, lm.map().covariance(), 0.0));
+  EXPECT_TRUE(matrices_near(snap.covariance.topLeftCorner(3, 3), lm.robot_covariance(), 0.0));
+  const std::vector<EntityId> ids = lm.segment_ids();
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    EXPECT_TRUE(is_near(snap.segments[i].location, lm.map().entity(ids[i]).location, 0.0, 0.0));
+    EXPECT_EQ(snap.segments[i].length_m, lm.map().entity(ids[i]).length_m);
+  }
+  ASSERT_EQ(snap.scan_poses.size(), 3u);
+  EXPECT_EQ(snap.scan_poses.back().utime, snap.last_utime);
+  EXPECT_TRUE(is_near(snap.scan_poses.back().x_LR, snap.x_LR, 0.0, 0.0));
+  EXPECT_TRUE(spmap::check_covariance(snap.covariance).ok());
+
+  lm.reset();
+  EXPECT_EQ(lm.seq(), 1);
+  EXPECT_EQ(lm.num_segments(), 0u);
+  EXPECT_TRUE(is_near(lm.x_LR(), Pose2(), 0.0, 0.0));
+  EXPECT_TRUE(matrices_near(lm.robot_covariance(), Eigen::Matrix3d::Zero(), 0.0));
+  EXPECT_EQ(lm.span_m(), 0.0);
+  EXPECT_FALSE(lm.should_ship());
+  const LocalMapSnapshot empty = lm.snapshot();
+  EXPECT_EQ(empty.seq, 1);
+  EXPECT_EQ(empty.first_utime, snap.last_utime);  // L is the robot's pose at that scan
+  EXPECT_TRUE(empty.segments.empty());
+  EXPECT_TRUE(empty.scan_poses.empty());
+  EXPECT_EQ(empty.covariance.rows(), 3);
+
+  // The odometry reference survives the reset: the next scan predicts with the
+  // motion since the last scan of the previous map.
+  const Pose2 next(1.6, 0.1, 0.1);
+  lm.update(1000 + 3 * kScanPeriodUs, next, {});
+  EXPECT_TRUE(is_near(lm.x_LR(), between(odometry.back(), next), 1e-12, 1e-12));
+  EXPECT_GT(lm.robot_covariance().trace(), 0.0);
+}
+
+TEST(LocalMapInput, MalformedObservationsAreSkippedAndBadOdometryThrows) {
+  LocalMap lm;
+  ObservedSegment nan_location = observe_wall(Pose2(), {-1.0, 2.0}, {3.0, 2.0});
+  nan_location.location.x = std::nan("");
+  ObservedSegment zero_length = observe_wall(Pose2(), {-1.0, -2.0}, {3.0, -2.0});
+  zero_length.length_m = 0.0;
+  ObservedSegment indefinite = observe_wall(Pose2(), {5.0, -1.0}, {5.0, 3.0});
+  indefinite.covariance << 1e-4, 1e-2, 1e-2, 1e-4;
+  const ScanReport r = lm.update(0, Pose2(), {nan_location, zero_length, indefinite,
+                                              observe_wall(Pose2(), {-1.0, 3.0}, {3.0, 3.0})});
+  EXPECT_EQ(r.observations, 4);
+  EXPECT_EQ(r.observations_rejected, 3);
+  EXPECT_EQ(r.segments_added, 1);
+
+  const spmap::StochasticMap before = lm.map();
+  EXPECT_THROW(lm.update(kScanPeriodUs, Pose2(std::nan(""), 0.0, 0.0), {}), std::invalid_argument);
+  EXPECT_TRUE(matrices_near(lm.map().covariance(), before.covariance(), 0.0));
+  EXPECT_EQ(lm.snapshot().scan_poses.size(), 1u);
+}
+
+// A robot driving down a corridor with exact odometry and noiseless walls: the
+// map holds one segment per wall and the pose stays exact.
+TEST(LocalMapScenario, CorridorWithExactDataStaysExact) {
+  LocalMap lm;
+  const std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> walls = {
+      {{-2.0, 1.5}, {30.0, 1.5}}, {{-2.0, -1.5}, {30.0, -1.5}}, {{12.0, -1.5}, {12.0, 1.5}}};
+  for (int k = 0; k < 20; ++k) {
+    const Pose2 x(0.5 * k, 0.0, 0.0);
+    std::vector<ObservedSegment> scan;
+    for (int w = 0; w < 2; ++w) {
+      const double y = walls[static_cast<std::size_t>(w)].first.y();
+      scan.push_back(observe_wall(x, {x.x - 3.0, y}, {x.x + 3.0, y}));
+    }
+    scan.push_back(observe_wall(x, walls[2].first, walls[2].second));
+    const ScanReport r = lm.update(k * kScanPeriodUs, x, scan);
+    ASSERT_TRUE(r.covariance_health.ok()) << k << ": " << r.covariance_health.describe();
+    ASSERT_EQ(r.observations_discarded, 0) << k;
+  }
+  EXPECT_EQ(lm.num_segments(), 3u);
+  EXPECT_TRUE(is_near(lm.x_LR(), Pose2(9.5, 0.0, 0.0), 1e-6, 1e-8));
+}
+
+}  // namespace
+}  // namespace lmf
