@@ -137,8 +137,34 @@ void split(const std::vector<ScanPoint>& points, Range cluster, double split_dis
       }
     }
     if (farthest_distance <= split_distance_m) {
-      pieces.push_back(r);
-      continue;
+      // The chord of two noisy end points can hide a point that is far from the
+      // fitted line; every supporting point must lie near the line it supports.
+      const LineFit fit = fit_line(points, r);
+      if (fit.max_residual_m <= split_distance_m) {
+        pieces.push_back(r);
+        continue;
+      }
+      farthest = r.begin;
+      farthest_distance = -1.0;
+      for (std::size_t i = r.begin; i < r.end; ++i) {
+        const double d = distance_to_line(points[i].p, fit);
+        if (d > farthest_distance) {
+          farthest_distance = d;
+          farthest = i;
+        }
+      }
+      if (farthest == r.begin || farthest + 1 == r.end) {
+        // An outlying end point (a mixed reading at an edge): peel it off.
+        // Pieces must come out in beam order (merge() joins neighbours).
+        if (farthest == r.begin) {
+          pieces.push_back({r.begin, r.begin + 1});
+          stack.push_back({r.begin + 1, r.end});
+        } else {
+          stack.push_back({r.end - 1, r.end});
+          stack.push_back({r.begin, r.end - 1});
+        }
+        continue;
+      }
     }
     // The farthest point (a corner, usually) ends the first piece; the
     // boundary refinement below may hand it to the second one.
@@ -169,20 +195,23 @@ void merge(const std::vector<ScanPoint>& points, double merge_distance_m, std::v
 
 // Moves the point at a boundary between two adjacent pieces to the piece whose
 // line it is closer to (the split point is often the corner, on both lines, or
-// one beam off it).
-void refine_boundaries(const std::vector<ScanPoint>& points, std::vector<Range>& pieces) {
+// one beam off it), when both refitted pieces keep every point within max_distance_m.
+void refine_boundaries(const std::vector<ScanPoint>& points, double max_distance_m, std::vector<Range>& pieces) {
+  const auto fits = [&](Range r) { return r.size() < 3 || fit_line(points, r).max_residual_m <= max_distance_m; };
   for (std::size_t k = 0; k + 1 < pieces.size(); ++k) {
     Range& a = pieces[k];
     Range& b = pieces[k + 1];
     if (a.size() < 3 || b.size() < 3) continue;
-    const LineFit fa = fit_line(points, {a.begin, a.end - 1});  // without the candidate point
+    const LineFit fa = fit_line(points, {a.begin, a.end - 1});  // without the candidate points
     const LineFit fb = fit_line(points, {b.begin + 1, b.end});
     const Eigen::Vector2d& last_of_a = points[a.end - 1].p;
     const Eigen::Vector2d& first_of_b = points[b.begin].p;
-    if (distance_to_line(last_of_a, fb) < distance_to_line(last_of_a, fa)) {
+    if (distance_to_line(last_of_a, fb) < distance_to_line(last_of_a, fa) &&
+        fits({a.begin, a.end - 1}) && fits({b.begin - 1, b.end})) {
       --a.end;
       --b.begin;
-    } else if (distance_to_line(first_of_b, fa) < distance_to_line(first_of_b, fb)) {
+    } else if (distance_to_line(first_of_b, fa) < distance_to_line(first_of_b, fb) &&
+               fits({a.begin, a.end + 1}) && fits({b.begin + 1, b.end})) {
       ++a.end;
       ++b.begin;
     }
@@ -297,7 +326,7 @@ std::vector<ExtractedSegment> extract_segments_with_support(const LaserScan& sca
     pieces.clear();
     split(points, cluster, config.split_distance_m, pieces);
     merge(points, config.merge_distance_m, pieces);
-    refine_boundaries(points, pieces);
+    refine_boundaries(points, std::max(config.split_distance_m, config.merge_distance_m), pieces);
     for (const Range& piece : pieces) {
       if (auto segment = make_segment(points, piece, config)) segments.push_back(std::move(*segment));
     }

@@ -111,6 +111,45 @@ TEST(SegmentExtraction, PointGapThresholdCutsClusters) {
   EXPECT_EQ(extract_segments(dropped, ExtractionConfig{}).size(), 2u);
 }
 
+TEST(SegmentExtraction, OutlyingEndReadingIsLeftOut) {
+  // A mixed reading at the wall's edge, 25 cm behind it: close enough to stay in
+  // the cluster, too far from the line to support it.
+  const SyntheticWorld world{{{{2.0, -1.0}, {2.0, 1.0}}}, {}};
+  LaserScan scan = make_scan(world);
+  std::size_t last_hit = 0;
+  for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {
+    if (scan.ranges_m[i] < 79.0) last_hit = i;
+  }
+  scan.ranges_m[last_hit] += 0.25;
+  const auto segments = extract_segments_with_support(scan, ExtractionConfig{});
+  ASSERT_EQ(segments.size(), 1u);
+  EXPECT_EQ(segments[0].last_beam, last_hit - 1);
+  EXPECT_NEAR(segments[0].segment.location.phi, kPi / 2.0, 1e-9);
+  EXPECT_LT(segments[0].max_residual_m, 1e-9);
+}
+
+TEST(SegmentExtraction, SupportingPointsLieNearTheirLine) {
+  // A room at the default (5 cm) noise: whatever the split decides, every
+  // supporting point is within the split/merge distance of its line.
+  const SyntheticWorld room{{{{4.0, -3.0}, {4.0, 3.0}}, {{4.0, 3.0}, {-1.0, 3.0}}, {{-1.0, -3.0}, {4.0, -3.0}}}, {}};
+  const ExtractionConfig config;
+  std::mt19937 rng(6);
+  int total = 0;
+  for (int run = 0; run < 20; ++run) {
+    const LaserScan scan = make_scan(room, {}, 361, 80.0, 0.05, &rng);
+    const auto segments = extract_segments_with_support(scan, config);
+    EXPECT_GE(segments.size(), 3u);
+    for (const auto& e : segments) {
+      const Pose2 x_ER = inverse(e.segment.location);
+      for (std::size_t i = e.first_beam; i <= e.last_beam; ++i) {
+        EXPECT_LE(std::abs(x_ER.transform_point(scan.beam_point(i)).y()), config.split_distance_m + 1e-9);
+      }
+    }
+    total += static_cast<int>(segments.size());
+  }
+  EXPECT_LE(total, 20 * 4);  // mostly one segment per wall
+}
+
 TEST(SegmentExtraction, ThinWallFromBothSidesHasOppositeDirections) {
   const SyntheticWorld world{{{{2.0, -1.0}, {2.0, 1.0}}}, {}};
   const Pose2 x_WR1(0.0, 0.0, 0.0);
