@@ -9,13 +9,17 @@
 namespace lmf::spmap {
 
 CarefulInverse careful_inverse(const Eigen::MatrixXd& S, double relative_tolerance) {
+  return careful_inverse(S, relative_tolerance, 0.0);
+}
+
+CarefulInverse careful_inverse(const Eigen::MatrixXd& S, double relative_tolerance, double reference_scale) {
   if (S.rows() != S.cols()) {
     throw std::invalid_argument("careful_inverse: S is " + std::to_string(S.rows()) + "x" +
                                 std::to_string(S.cols()) + ", not square");
   }
   if (!S.allFinite()) throw std::invalid_argument("careful_inverse: S has NaN or inf entries");
-  if (!(relative_tolerance >= 0.0)) {
-    throw std::invalid_argument("careful_inverse: relative_tolerance must be >= 0");
+  if (!(relative_tolerance >= 0.0) || !(reference_scale >= 0.0) || !std::isfinite(reference_scale)) {
+    throw std::invalid_argument("careful_inverse: relative_tolerance and reference_scale must be finite and >= 0");
   }
 
   const Eigen::Index m = S.rows();
@@ -29,7 +33,7 @@ CarefulInverse careful_inverse(const Eigen::MatrixXd& S, double relative_toleran
   // consistent even if the caller's S is asymmetric by rounding.
   Eigen::MatrixXd A = 0.5 * (S + S.transpose());
   const double largest_initial = A.diagonal().cwiseAbs().maxCoeff();
-  const double threshold = relative_tolerance * largest_initial;
+  const double threshold = relative_tolerance * std::max(largest_initial, reference_scale);
 
   std::vector<bool> swept(static_cast<std::size_t>(m), false);
   double smallest_kept = std::numeric_limits<double>::infinity();

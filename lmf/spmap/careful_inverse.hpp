@@ -19,8 +19,16 @@ struct CarefulInverse {
   double smallest_kept_pivot = 0.0;
 };
 
-// Throws std::invalid_argument if S is not square or not finite. An all-zero S
-// keeps nothing.
+// Elimination stops when the best remaining pivot is <= relative_tolerance *
+// max(largest initial |S_ii|, reference_scale). Throws std::invalid_argument if S
+// is not square or not finite, or a tolerance is negative. An all-zero S keeps nothing.
 CarefulInverse careful_inverse(const Eigen::MatrixXd& S, double relative_tolerance = 1e-9);
+
+// Same, with an absolute scale for "small": the size S would have without the
+// cancellations that make it (nearly) singular. Without it a matrix that is all
+// rounding noise (a constraint repeated once more) looks well scaled relative to
+// itself and its noise would be inverted. ekf.hpp passes the variance of the
+// rows as if the entities were uncorrelated.
+CarefulInverse careful_inverse(const Eigen::MatrixXd& S, double relative_tolerance, double reference_scale);
 
 }  // namespace lmf::spmap

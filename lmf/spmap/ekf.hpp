@@ -51,6 +51,14 @@ Eigen::MatrixXd innovation_covariance(const StochasticMap& map,
 // Stacked ĥ.
 Eigen::VectorXd stacked_value(const std::vector<ImplicitMeasurement>& measurements);
 
+// The largest diagonal of S as if the entities were uncorrelated,
+// max_i (Σ_blocks J P_EE Jᵀ + R)_ii: the scale against which the careful
+// inversion judges a pivot small (DESIGN §6). A relation the state already
+// knows (a repeated perfect constraint) has S ≈ 0 up to rounding although this
+// scale is not small, so its rows are dropped instead of inverting noise.
+// Every function below passes it to careful_inverse.
+double innovation_reference_scale(const StochasticMap& map, const std::vector<ImplicitMeasurement>& measurements);
+
 // Upper alpha quantile of chi2 with `dof` degrees of freedom (e.g. alpha = 0.05 → 95 %).
 double chi2_threshold(int dof, double alpha);
 

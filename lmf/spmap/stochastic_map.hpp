@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <unordered_map>
 #include <vector>
 
 #include <Eigen/Core>
@@ -42,7 +43,9 @@ class StochasticMap {
 
   bool contains(EntityId id) const;
   const Entity& entity(EntityId id) const;  // throws std::invalid_argument if unknown
-  Entity& mutable_entity(EntityId id);      // location / length / parent edits
+  // Location / length / parent edits. Never change `id`, `kind` or `offset`:
+  // they index P. A new parent must already exist (no cycles).
+  Entity& mutable_entity(EntityId id);
   const std::vector<Entity>& entities() const { return entities_; }  // state order
   std::vector<EntityId> children(std::optional<EntityId> parent) const;
 
@@ -70,13 +73,14 @@ class StochasticMap {
   // perturbation equals the source's: its rows of P copy the source's (perfect correlation).
   EntityId add_copy(EntityId source);
 
-  // Resets to an empty map.
+  // Resets to an empty map. Ids keep counting: an id is never reused.
   void clear();
 
  private:
   std::size_t index_of(EntityId id) const;
 
   std::vector<Entity> entities_;
+  std::unordered_map<EntityId, std::size_t> index_;  // id -> position in entities_
   Eigen::MatrixXd P_;
   EntityId next_id_ = 0;
 };
