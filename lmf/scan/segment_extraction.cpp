@@ -232,6 +232,9 @@ void refine_boundaries(const std::vector<ScanPoint>& points, double max_distance
 //   Var(â) = Σ σ_i² / N²,  Var(b̂) = Σ s_i² σ_i² / (Σ s_i²)²,
 //   Cov(â, b̂) = Σ s_i σ_i² / (N Σ s_i²),
 // which for equal σ_i are the familiar σ²/N and σ²/Σ(s_i - s̄)², uncorrelated.
+// (The neglected second-order terms matter only for large noise at grazing
+// incidence: at 5 cm noise on a wall seen from 80° they add about 14 % to the
+// variances; tests/scan checks the NEES.)
 // The segment frame sits at the midpoint m of the end points, dx = s_m along the
 // axis from the centroid; the lateral error there is a + b dx, so
 // P = J Σ_ab Jᵀ with J = [[1, dx], [0, 1]] (the dx rule of DESIGN §3).
@@ -277,7 +280,8 @@ std::optional<ExtractedSegment> make_segment(const std::vector<ScanPoint>& point
 
   ExtractedSegment out;
   const Eigen::Vector2d midpoint = fit.centroid + dx * fit.direction;
-  out.segment.location = Pose2(midpoint.x(), midpoint.y(), std::atan2(fit.direction.y(), fit.direction.x()));
+  out.segment.location =
+      Pose2(midpoint.x(), midpoint.y(), wrap_angle(std::atan2(fit.direction.y(), fit.direction.x())));
   out.segment.length_m = length_m;
   out.segment.covariance = J * cov_ab * J.transpose();
   out.segment.first_point = fit.centroid + s_first * fit.direction;
