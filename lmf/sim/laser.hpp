@@ -21,7 +21,7 @@ namespace lmf::sim {
 struct LaserConfig {
   std::size_t num_beams = 361;       // over 180°, >= 2
   double range_noise_sigma_m = 0.05; // the paper's ±5 cm, >= 0
-  double max_range_m = 30.0;         // > 0
+  double max_range_m = 80.0;         // > 0; SICK LMS-like long range: the world is closed, so every beam returns
   // Throws std::invalid_argument when out of range.
   void validate() const;
 };
