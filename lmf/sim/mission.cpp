@@ -110,16 +110,15 @@ Mission simulate_mission(const MissionConfig& config) {
         plan_route(world, world.start_spots[i], config.motion, config.duration_s + period, route_rng);
   }
 
-  // Scan times per robot (relative to start_time_s), interleaved between robots.
-  std::vector<std::vector<double>> times(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const double offset = period * static_cast<double>(i) / static_cast<double>(n);
-    for (std::size_t k = 0;; ++k) {
-      const double t = offset + period * static_cast<double>(k);
-      if (t > config.duration_s + 1e-9) break;
-      times[i].push_back(t);
-    }
+  // Scan times (relative to start_time_s), the same for every robot, so that a sighting's
+  // time is a scan time of both robots.
+  std::vector<double> scan_times;
+  for (std::size_t k = 0;; ++k) {
+    const double t = period * static_cast<double>(k);
+    if (t > config.duration_s + 1e-9) break;
+    scan_times.push_back(t);
   }
+  const std::vector<std::vector<double>> times(n, scan_times);
 
   for (std::size_t i = 0; i < n; ++i) {
     RobotRun& run = mission.robots[i];
@@ -175,6 +174,7 @@ Mission simulate_mission(const MissionConfig& config) {
         s.observer = static_cast<int>(a);
         s.observed = static_cast<int>(b);
         s.observer_scan = k;
+        s.observed_scan = k;
         s.x_AB = between(x_WA, x_WB);
         s.range_m = std::hypot(s.x_AB.x, s.x_AB.y);
         mission.sightings.push_back(s);

@@ -3,9 +3,9 @@
 // included) gives the same mission on every machine. Pure: no files, no clock, no threads.
 //
 // Robot ids are 0 .. num_robots-1. Robot i starts at World::start_spots[i] (robot 1 starts
-// 5 m ahead of robot 0, in its view; robot 2 on the far side of the ring). Robot i scans at
-// t = start_time_s + i * period / num_robots + k * period (period = 1 / scan_rate_hz), so the
-// robots' scans interleave; scans stop at start_time_s + duration_s.
+// 5 m ahead of robot 0, in its view; robot 2 on the far side of the ring). Every robot scans
+// at t = start_time_s + k / scan_rate_hz for k = 0, 1, ... while t <= start_time_s + duration_s,
+// so scan k of every robot has the same timestamp (and a sighting's time is a scan of both).
 //
 // Independent random streams (from the seed) drive: the world layout, each robot's route,
 // each robot's laser noise, each robot's odometry noise, and the people. Changing the number
@@ -70,6 +70,7 @@ struct Sighting {
   int observer = 0;
   int observed = 0;
   std::size_t observer_scan = 0;  // index into the observer's scans
+  std::size_t observed_scan = 0;  // index into the observed robot's scans (same time)
   Pose2 x_AB;                     // observed robot B seen from observer A (true)
   double range_m = 0.0;
 };

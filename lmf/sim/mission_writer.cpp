@@ -99,7 +99,7 @@ json config_json(const MissionConfig& c) {
         {"table_probability", fixed(c.world.table_probability)}}},
       {"laser",
        {{"num_beams", c.laser.num_beams},
-        {"angle_min_rad", fixed(-0.5 * 3.14159265358979323846)},
+        {"angle_min_rad", -0.5 * 3.14159265358979323846},
         {"angle_increment_rad", beam_increment_for_180deg(c.laser.num_beams)},
         {"range_noise_sigma_m", fixed(c.laser.range_noise_sigma_m)},
         {"max_range_m", fixed(c.laser.max_range_m)}}},
@@ -256,12 +256,13 @@ void write_mission(const Mission& mission, const std::filesystem::path& dir) {
                          {"observer", s.observer},
                          {"observed", s.observed},
                          {"observer_scan", s.observer_scan},
+                         {"observed_scan", s.observed_scan},
                          {"x_AB", pose(s.x_AB)},
                          {"range_m", fixed(s.range_m)}});
   }
   write_json(dir / "sightings.json",
              {{"format", "lmf-sim sightings v1"},
-              {"note", "true pose x_AB of the observed robot B in the observer A's frame, at A's scan time"},
+              {"note", "true pose x_AB of the observed robot B in the observer A's frame at utime, the time of scan observer_scan of A and observed_scan of B"},
               {"max_range_m", fixed(c.sightings.max_range_m)},
               {"field_of_view_rad", fixed(c.sightings.field_of_view_rad)},
               {"min_interval_s", fixed(c.sightings.min_interval_s)},
