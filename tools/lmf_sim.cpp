@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <exception>
 #include <iostream>
+#include <sstream>
 #include <string>
 
 #include <boost/program_options.hpp>
@@ -32,6 +33,14 @@ constexpr const char* kAbout =
     "\n"
     "Usage: lmf-sim --out DIR [options]\n";
 
+// A default value as the help shows it (0.05, not 0.050000000000000003).
+template <typename T>
+std::string text(const T& value) {
+  std::ostringstream out;
+  out << value;
+  return out.str();
+}
+
 struct Options {
   lmf::sim::MissionConfig config;
   std::string out;
@@ -47,27 +56,27 @@ bool parse(int argc, char** argv, Options& o) {
   desc.add_options()
       ("help,h", "print this help and exit")
       ("out", po::value(&o.out)->required(), "output folder (created if missing; files are overwritten) [required]")
-      ("robots", po::value(&c.num_robots)->default_value(c.num_robots), "number of robots, 1..8")
-      ("seed", po::value(&seed)->default_value(seed), "random seed (world layout, routes, noise)")
-      ("duration-s", po::value(&c.duration_s)->default_value(c.duration_s), "mission length in seconds")
-      ("speed-mps", po::value(&c.motion.speed_mps)->default_value(c.motion.speed_mps), "robot speed (m/s)")
-      ("scan-rate-hz", po::value(&c.scan_rate_hz)->default_value(c.scan_rate_hz), "laser scans per second per robot")
-      ("beams", po::value(&beams)->default_value(beams), "beams per scan over 180 deg")
-      ("range-noise-m", po::value(&c.laser.range_noise_sigma_m)->default_value(c.laser.range_noise_sigma_m),
+      ("robots", po::value(&c.num_robots)->default_value(c.num_robots, text(c.num_robots)), "number of robots, 1..8")
+      ("seed", po::value(&seed)->default_value(seed, text(seed)), "random seed (world layout, routes, noise)")
+      ("duration-s", po::value(&c.duration_s)->default_value(c.duration_s, text(c.duration_s)), "mission length in seconds")
+      ("speed-mps", po::value(&c.motion.speed_mps)->default_value(c.motion.speed_mps, text(c.motion.speed_mps)), "robot speed (m/s)")
+      ("scan-rate-hz", po::value(&c.scan_rate_hz)->default_value(c.scan_rate_hz, text(c.scan_rate_hz)), "laser scans per second per robot")
+      ("beams", po::value(&beams)->default_value(beams, text(beams)), "beams per scan over 180 deg")
+      ("range-noise-m", po::value(&c.laser.range_noise_sigma_m)->default_value(c.laser.range_noise_sigma_m, text(c.laser.range_noise_sigma_m)),
        "standard deviation of the range noise (m)")
-      ("max-range-m", po::value(&c.laser.max_range_m)->default_value(c.laser.max_range_m),
+      ("max-range-m", po::value(&c.laser.max_range_m)->default_value(c.laser.max_range_m, text(c.laser.max_range_m)),
        "laser max range (m); a beam with no wall within it reads exactly this (\"no return\")")
-      ("odometry-noise", po::value(&odometry_noise)->default_value(odometry_noise),
+      ("odometry-noise", po::value(&odometry_noise)->default_value(odometry_noise, text(odometry_noise)),
        "odometry noise: standard deviation per metre of translation and per radian of rotation (fraction)")
       ("odometry-drift-rad-per-m",
-       po::value(&c.odometry.heading_drift_rad_per_m)->default_value(c.odometry.heading_drift_rad_per_m),
+       po::value(&c.odometry.heading_drift_rad_per_m)->default_value(c.odometry.heading_drift_rad_per_m, text(c.odometry.heading_drift_rad_per_m)),
        "extra heading noise standard deviation per metre travelled")
-      ("people", po::value(&c.people.count)->default_value(c.people.count),
+      ("people", po::value(&c.people.count)->default_value(c.people.count, text(c.people.count)),
        "people walking in the corridors (clutter in the scans); 0 = none (the default)")
       ("hide-robots", po::bool_switch(), "robots do not appear in each other's scans (they do by default)")
-      ("sighting-range-m", po::value(&c.sightings.max_range_m)->default_value(c.sightings.max_range_m),
+      ("sighting-range-m", po::value(&c.sightings.max_range_m)->default_value(c.sightings.max_range_m, text(c.sightings.max_range_m)),
        "a robot is seen within this distance")
-      ("sighting-interval-s", po::value(&c.sightings.min_interval_s)->default_value(c.sightings.min_interval_s),
+      ("sighting-interval-s", po::value(&c.sightings.min_interval_s)->default_value(c.sightings.min_interval_s, text(c.sightings.min_interval_s)),
        "at most one sighting per observer/observed pair per this many seconds");
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
