@@ -252,15 +252,27 @@ std::optional<Rejection> check_covariance(const Eigen::MatrixXd& P, std::string_
     return reject(RejectReason::kCovarianceNotSymmetric,
                   std::string(what) + ": max |P - P^T| = " + to_string(asymmetry) + " (max |P| = " + to_string(scale) + ")");
   }
-  // Pivoted LDLᵀ: for a PSD matrix every pivot is >= 0 up to rounding; an
-  // indefinite matrix shows a clearly negative pivot (or breaks the factorisation).
-  const Eigen::LDLT<Eigen::MatrixXd> ldlt(P.selfadjointView<Eigen::Upper>());
+  // PSD within tolerance <=> P + delta I is positive definite, delta = psd * max P_ii.
+  // A pivoted LDLᵀ of the shifted matrix completes with all pivots > 0 exactly
+  // then (inertia); rounding (~n eps max P_ii) stays far below delta. The shift
+  // matters: an unshifted singular PSD matrix makes Eigen's LDLT meet zero
+  // pivots over rounding-level columns and report failure.
   const double max_diagonal = P.diagonal().maxCoeff();
-  const double min_pivot = ldlt.vectorD().minCoeff();
-  if (ldlt.info() != Eigen::Success || !std::isfinite(min_pivot) || min_pivot < -tolerance.psd * std::abs(max_diagonal) ||
-      P.diagonal().minCoeff() < -tolerance.psd * std::abs(max_diagonal)) {
+  if (max_diagonal <= 0.0) {
+    if (max_diagonal == 0.0 && scale == 0.0) return std::nullopt;  // the zero matrix
     return reject(RejectReason::kCovarianceNotPsd,
-                  std::string(what) + ": LDL^T pivot " + to_string(min_pivot) + " (max P_ii = " + to_string(max_diagonal) + ")");
+                  std::string(what) + ": largest diagonal entry " + to_string(max_diagonal) + " with max |P| = " +
+                      to_string(scale));
+  }
+  const double delta = tolerance.psd * max_diagonal;
+  Eigen::MatrixXd shifted = P;
+  shifted.diagonal().array() += delta;
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(shifted);
+  const double min_pivot = ldlt.vectorD().minCoeff();
+  if (ldlt.info() != Eigen::Success || !(min_pivot > 0.0)) {
+    return reject(RejectReason::kCovarianceNotPsd,
+                  std::string(what) + ": LDL^T of P + " + to_string(delta) + " I has pivot " + to_string(min_pivot) +
+                      " (max P_ii = " + to_string(max_diagonal) + ")");
   }
   return std::nullopt;
 }

@@ -57,7 +57,7 @@ struct DecodeLimits {
 // Tolerances of the covariance checks (relative to the matrix's own scale).
 struct CovarianceTolerance {
   double symmetry = 1e-9;  // |P_ij - P_ji| <= symmetry * max |P|
-  double psd = 1e-9;       // every LDLᵀ pivot >= -psd * max P_ii
+  double psd = 1e-9;       // eigenvalues >= -psd * max P_ii (tested as P + psd max P_ii I > 0)
 };
 
 // ---- 1. bytes <-> LCM messages ---------------------------------------------
@@ -81,8 +81,8 @@ std::vector<double> pack_upper_triangle(const Eigen::MatrixXd& P);
 Eigen::MatrixXd unpack_upper_triangle(std::span<const double> packed, int n);
 // nullopt when P is square, finite, symmetric and PSD within tolerance, else
 // the rejection (wrong_size, non_finite, covariance_not_symmetric,
-// covariance_not_psd) naming `what`. PSD is decided from the pivots of a
-// pivoted LDLᵀ factorisation.
+// covariance_not_psd) naming `what`. PSD is decided by a pivoted LDLᵀ
+// factorisation of the slightly shifted matrix (no eigen-decomposition).
 std::optional<Rejection> check_covariance(const Eigen::MatrixXd& P, std::string_view what,
                                           const CovarianceTolerance& tolerance = {});
 

@@ -12,7 +12,9 @@
 //
 // Threading: run()/run_for()/poll() on one thread; every callback (bus
 // handlers, timers) runs on it. stop() may be called from any thread or from
-// a callback. post() is the way for another thread to hand work to the loop.
+// a callback; it takes effect when the running handler returns (a batch of
+// bus messages being dispatched is finished first). post() is the way for
+// another thread (e.g. the fusion worker) to hand work to the loop.
 #pragma once
 
 #include <chrono>

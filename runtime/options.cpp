@@ -31,7 +31,11 @@ ParseResult parse_options(int argc, const char* const argv[], const po::options_
   std::ostringstream usage;
   usage << "Usage: " << program << " [options]\n" << summary << "\n\n" << description;
   try {
-    po::store(po::command_line_parser(argc, argv).options(description).run(), vm);
+    const po::parsed_options parsed = po::command_line_parser(argc, argv).options(description).run();
+    // Without a positional description Boost keeps stray words silently: refuse them.
+    const auto stray = po::collect_unrecognized(parsed.options, po::include_positional);
+    if (!stray.empty()) return {ParseResult::Status::kError, "unexpected argument '" + stray.front() + "'"};
+    po::store(parsed, vm);
     if (vm.count("help") != 0) return {ParseResult::Status::kHelp, usage.str()};
     po::notify(vm);
     if (vm.count("channel-prefix") != 0) Channels{vm["channel-prefix"].as<std::string>()};  // validates

@@ -27,7 +27,7 @@ enum class RejectReason : std::uint8_t {
   kNonFinite,                // NaN or infinity in a number
   kWrongSize,                // array count mismatch (e.g. covariance count != n(n+1)/2)
   kCovarianceNotSymmetric,   // |P - Pᵀ| beyond tolerance (only a sender can see this)
-  kCovarianceNotPsd,         // an LDLᵀ pivot below -tolerance
+  kCovarianceNotPsd,         // an eigenvalue below -tolerance (found by an LDLᵀ test)
   kBadAngle,                 // an angle outside (-pi, pi] or a non-positive beam step
   kOutOfRange,               // a value outside its domain (negative id, range, length, ...)
   kUnknownRobot,             // decided by the caller: a robot it does not know
