@@ -215,11 +215,7 @@ class Builder {
     };
     for (const auto& b : free_) fill(b, 1);
     for (const auto& b : tables_) fill(b, 0);
-    world.cell_m_ = kCell;
-    world.raster_origin_ = {to_m(ox_), to_m(oy_)};
-    world.raster_cols_ = cols_;
-    world.raster_rows_ = rows_;
-    world.raster_ = grid_;
+    world.set_free_raster({to_m(ox_), to_m(oy_)}, kCell, cols_, rows_, grid_);
     world.bounds = {{to_m(x0), to_m(y0)}, {to_m(x1), to_m(y1)}};
   }
 
@@ -385,6 +381,18 @@ bool World::is_free(const Eigen::Vector2d& p) const {
   const auto j = static_cast<int>(fy);
   if (i >= raster_cols_ || j >= raster_rows_) return false;
   return raster_[static_cast<std::size_t>(j) * raster_cols_ + i] != 0;
+}
+
+void World::set_free_raster(const Eigen::Vector2d& origin, double cell_m, int cols, int rows,
+                            std::vector<uint8_t> cells) {
+  if (!(cell_m > 0.0) || cols < 0 || rows < 0 || cells.size() != static_cast<std::size_t>(cols) * rows) {
+    throw std::invalid_argument("World::set_free_raster: cell size or cell count does not match");
+  }
+  raster_origin_ = origin;
+  cell_m_ = cell_m;
+  raster_cols_ = cols;
+  raster_rows_ = rows;
+  raster_ = std::move(cells);
 }
 
 World generate_world(const WorldConfig& config, uint64_t seed) {

@@ -99,12 +99,16 @@ class World {
   // True where the point is in free space (inside a corridor, door or room, not in a table).
   bool is_free(const Eigen::Vector2d& p) const;
 
-  // Internal: the free-space raster (filled by generate_world).
+  // The free-space raster behind is_free(): cols x rows cells of cell_m, row-major from the
+  // cell at `origin` (its lower-left corner), 1 = free. Set by generate_world.
+  void set_free_raster(const Eigen::Vector2d& origin, double cell_m, int cols, int rows, std::vector<uint8_t> cells);
+
+ private:
   double cell_m_ = 0.1;
   Eigen::Vector2d raster_origin_ = Eigen::Vector2d::Zero();
   int raster_cols_ = 0;
   int raster_rows_ = 0;
-  std::vector<uint8_t> raster_;          // row-major, 1 = free
+  std::vector<uint8_t> raster_;
 };
 
 // Generates the world for a seed. Same (config, seed) -> identical world.
