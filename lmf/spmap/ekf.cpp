@@ -246,6 +246,23 @@ std::vector<std::size_t> incremental_joint_compatibility(const StochasticMap& ma
   return kept;
 }
 
+void mirror_lower_to_upper(Eigen::MatrixXd& P) {
+  if (P.rows() != P.cols()) throw std::invalid_argument("mirror_lower_to_upper: matrix is not square");
+  // Block transposes: a column-by-column mirror reads rows with stride n and
+  // costs more than the rank-k update itself on a large P.
+  const Eigen::Index n = P.rows();
+  constexpr Eigen::Index kBlock = 64;
+  for (Eigen::Index j0 = 0; j0 < n; j0 += kBlock) {
+    const Eigen::Index bj = std::min(kBlock, n - j0);
+    for (Eigen::Index i0 = 0; i0 < j0; i0 += kBlock) {
+      P.block(i0, j0, kBlock, bj) = P.block(j0, i0, bj, kBlock).transpose();
+    }
+    for (Eigen::Index j = j0 + 1; j < j0 + bj; ++j) {
+      for (Eigen::Index i = j0; i < j; ++i) P(i, j) = P(j, i);
+    }
+  }
+}
+
 UpdateReport ekf_update(StochasticMap& map, const std::vector<ImplicitMeasurement>& measurements,
                         double relative_tolerance) {
   UpdateReport report;
@@ -277,10 +294,7 @@ UpdateReport ekf_update(StochasticMap& map, const std::vector<ImplicitMeasuremen
   // then mirrored so both triangles stay valid.
   Eigen::MatrixXd& P = map.mutable_covariance();
   P.triangularView<Eigen::Lower>() -= W * PHt_k.transpose();
-  const Eigen::Index n = P.rows();
-  for (Eigen::Index j = 1; j < n; ++j) {
-    P.col(j).head(j) = P.row(j).head(j).transpose();
-  }
+  mirror_lower_to_upper(P);
 
   // Fold p̂ into every location and reset it to 0 (DESIGN §3).
   for (const Entity& e : map.entities()) {

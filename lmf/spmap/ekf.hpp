@@ -33,8 +33,12 @@ struct ImplicitMeasurement {
 // Builds B_out · chain as a measurement: rows of the chain value picked by
 // `rows` (e.g. {1, 2} for a segment's lateral and angular error, {2} for an
 // angle), minus `target` on those rows (angle row wrapped). Jacobians of links with the
-// same entity are summed; links without an entity contribute R = Jₗ Rₗ Jₗᵀ,
-// with `link_noise[l]` the covariance of that link's perturbation.
+// same entity are summed (one block per entity, in order of first appearance);
+// links without an entity contribute R = Jₗ Rₗ Jₗᵀ, with `link_noise[l]` the
+// covariance of that link's perturbation (dof x dof). `link_noise` is empty
+// (R = 0, a perfect constraint) or has one entry per link; entries of state
+// links are ignored and an empty entry means no noise. `target` is empty (0) or
+// one entry per row. Throws std::invalid_argument on bad rows or sizes.
 ImplicitMeasurement measurement_from_chain(const std::vector<ChainLink>& links,
                                            const std::vector<int>& rows,
                                            const std::vector<Eigen::MatrixXd>& link_noise = {},
@@ -85,9 +89,16 @@ struct UpdateReport {
   double distance2 = 0.0;
 };
 
+// Copies the lower triangle of the square matrix P onto its upper triangle
+// (cache-blocked; used after a lower-triangle rank-k update).
+void mirror_lower_to_upper(Eigen::MatrixXd& P);
+
 // One EKF update with all measurements (eq. 9): p̂ = -W ĥ over the kept rows,
 // P ← P - W H P, then p̂ is folded into every location and reset to 0. The
 // covariance update is a rank-k update of the lower triangle, mirrored after.
+// Cost O(n·m·dof) for P Hᵀ + O(m³) for the careful inversion + O(n²·k) for
+// the update (k kept rows); no n x m H is formed. Throws std::invalid_argument
+// for unknown entities or inconsistent sizes (before changing anything).
 UpdateReport ekf_update(StochasticMap& map, const std::vector<ImplicitMeasurement>& measurements,
                         double relative_tolerance = 1e-9);
 

@@ -37,8 +37,9 @@ class StochasticMap {
   EntityId add(EntityKind kind, const Pose2& location, std::optional<EntityId> parent = std::nullopt,
                double length_m = 0.0);
 
-  // Removes the entity and its rows/columns of P. Throws std::invalid_argument
-  // if unknown or if other entities still have it as parent.
+  // Removes the entity and its rows/columns of P (O(n²) compaction; the
+  // offsets of later entities shift). Throws std::invalid_argument if unknown
+  // or if other entities still have it as parent.
   void remove(EntityId id);
 
   bool contains(EntityId id) const;
@@ -63,6 +64,9 @@ class StochasticMap {
   // transforming P exactly (P ← A P Aᵀ with A the identity except target's rows).
   // Used for the segment frame shift and for L_r ← L_r ⊕ x_R. The location of
   // the target is not touched: callers set it to the matching estimate.
+  // Terms may include the target itself and may repeat an entity (summed).
+  // Cost O(n·dof·terms). Throws std::invalid_argument for an unknown entity or
+  // a J of the wrong size.
   struct LinearTerm {
     EntityId entity;
     Eigen::MatrixXd J;

@@ -110,6 +110,21 @@ TEST(CarefulInverse, KnownRedundantRowOfScaledMatrix) {
   EXPECT_TRUE(matrices_near(ci.inverse, S_kk.inverse(), 1e-12));
 }
 
+TEST(CarefulInverse, ReferenceScaleDropsRoundingNoise) {
+  // A well-conditioned but tiny S: kept against itself, dropped against a scale.
+  Eigen::Matrix2d S;
+  S << 3e-18, 1e-18, 1e-18, 2e-18;
+  EXPECT_EQ(careful_inverse(S).kept.size(), 2u);
+  EXPECT_TRUE(careful_inverse(S, 1e-9, 1e-2).kept.empty());
+  // A real measurement stays: the scale only sets what "small" means.
+  Eigen::Matrix2d real;
+  real << 3e-4, 1e-4, 1e-4, 2e-4;
+  const CarefulInverse ci = careful_inverse(real, 1e-9, 1e-2);
+  EXPECT_EQ(ci.kept.size(), 2u);
+  EXPECT_TRUE(matrices_near(ci.inverse, Eigen::MatrixXd(real.inverse()), 1e-6));
+  EXPECT_THROW(careful_inverse(real, 1e-9, -1.0), std::invalid_argument);
+}
+
 TEST(CarefulInverse, ZeroMatrixKeepsNothing) {
   const CarefulInverse ci = careful_inverse(Eigen::MatrixXd::Zero(4, 4));
   EXPECT_TRUE(ci.kept.empty());

@@ -121,6 +121,51 @@ TEST_F(LinearGaussian, UpdateEqualsTextbookKalman) {
   EXPECT_GT(p_hat.norm(), 1e-3);
 }
 
+TEST(EkfUpdate, LargerMapMatchesDenseAndMirrorsExactly) {
+  // 70 entities (n = 175): several 64-blocks of the mirrored triangle.
+  std::mt19937 rng(43);
+  StochasticMap map;
+  std::vector<EntityId> ids;
+  for (int i = 0; i < 70; ++i) {
+    ids.push_back(map.add(i % 2 == 0 ? EntityKind::kSegment : EntityKind::kFrame, Pose2(0.1 * i, -0.05 * i, 0.01 * i),
+                          std::nullopt, 1.0));
+  }
+  map.mutable_covariance() = test::random_spd(map.dimension(), rng, 0.1);
+  std::vector<ImplicitMeasurement> ms;
+  for (int k = 0; k < 4; ++k) {
+    ImplicitMeasurement m;
+    m.h = 0.1 * test::random_matrix(2, 1, rng);
+    for (const int idx : {3 * k, 17 + 11 * k, 69 - 5 * k}) {
+      const EntityId id = ids[static_cast<std::size_t>(idx)];
+      m.blocks.push_back({id, test::random_matrix(2, dof(map.entity(id).kind), rng)});
+    }
+    m.R = test::random_spd(2, rng, 0.01);
+    ms.push_back(m);
+  }
+  const Eigen::MatrixXd P = map.covariance();
+  const Eigen::MatrixXd H = dense_H(map, ms);
+  const Eigen::MatrixXd S = H * P * H.transpose() + dense_R(ms);
+  const Eigen::MatrixXd P_expected = P - P * H.transpose() * S.inverse() * H * P;
+  ekf_update(map, ms);
+  EXPECT_TRUE(matrices_near(map.covariance(), P_expected, 1e-12));
+  EXPECT_TRUE(matrices_near(map.covariance(), map.covariance().transpose(), 0.0));
+}
+
+TEST(EkfUpdate, MirrorLowerToUpper) {
+  std::mt19937 rng(47);
+  Eigen::MatrixXd empty(0, 0);
+  mirror_lower_to_upper(empty);  // no-op, no crash
+  for (const Eigen::Index n : {1, 5, 64, 130}) {
+    Eigen::MatrixXd M = test::random_matrix(n, n, rng);
+    Eigen::MatrixXd expected = M;
+    expected.triangularView<Eigen::StrictlyUpper>() = M.transpose();
+    mirror_lower_to_upper(M);
+    EXPECT_TRUE(matrices_near(M, expected, 0.0)) << n;
+  }
+  Eigen::MatrixXd not_square(2, 3);
+  EXPECT_THROW(mirror_lower_to_upper(not_square), std::invalid_argument);
+}
+
 TEST(EkfUpdate, DuplicatePerfectConstraintDropsRowsAndStaysPsd) {
   // The paper §III.B failure: two identical perfect constraints make S singular.
   std::mt19937 rng(37);
