@@ -508,28 +508,55 @@ Checked<Sighting> from_message(const lmf::sighting_t& msg, const DecodeLimits&) 
   if (msg.observer_id == msg.observed_id) {
     return reject(RejectReason::kOutOfRange, "sighting_t: robot " + to_string(msg.observer_id) + " sees itself");
   }
-  auto pose = pose_from(msg.relative, "sighting_t.relative");
-  if (!pose) return pose.rejection();
-  auto covariance = covariance3_from(msg.covariance, 6, "sighting_t.covariance");
-  if (!covariance) return covariance.rejection();
+  if (auto r = check_nonnegative(msg.observer_seq, "sighting_t.observer_seq")) return *r;
+  if (auto r = check_nonnegative(msg.observed_seq, "sighting_t.observed_seq")) return *r;
+  auto x_AB = pose_from(msg.relative, "sighting_t.relative");
+  if (!x_AB) return x_AB.rejection();
+  auto x_LA = pose_from(msg.observer_in_local, "sighting_t.observer_in_local");
+  if (!x_LA) return x_LA.rejection();
+  auto x_LB = pose_from(msg.observed_in_local, "sighting_t.observed_in_local");
+  if (!x_LB) return x_LB.rejection();
+  auto cov_AB = covariance3_from(msg.covariance, 6, "sighting_t.covariance");
+  if (!cov_AB) return cov_AB.rejection();
+  auto cov_LA = covariance3_from(msg.observer_covariance, 6, "sighting_t.observer_covariance");
+  if (!cov_LA) return cov_LA.rejection();
+  auto cov_LB = covariance3_from(msg.observed_covariance, 6, "sighting_t.observed_covariance");
+  if (!cov_LB) return cov_LB.rejection();
   Sighting out;
   out.utime = msg.utime;
   out.observer_id = msg.observer_id;
   out.observed_id = msg.observed_id;
-  out.x_AB = pose.value();
-  out.covariance = covariance.value();
+  out.x_AB = x_AB.value();
+  out.covariance = cov_AB.value();
+  out.observer_seq = msg.observer_seq;
+  out.x_LA = x_LA.value();
+  out.cov_LA = cov_LA.value();
+  out.observed_seq = msg.observed_seq;
+  out.x_LB = x_LB.value();
+  out.cov_LB = cov_LB.value();
   return out;
 }
 
 Checked<lmf::sighting_t> to_message(const Sighting& sighting, const CovarianceTolerance& tolerance) {
   if (auto r = check_covariance(sighting.covariance, "Sighting.covariance", tolerance)) return *r;
+  if (auto r = check_covariance(sighting.cov_LA, "Sighting.cov_LA", tolerance)) return *r;
+  if (auto r = check_covariance(sighting.cov_LB, "Sighting.cov_LB", tolerance)) return *r;
   lmf::sighting_t msg;
   msg.utime = sighting.utime;
   msg.observer_id = sighting.observer_id;
   msg.observed_id = sighting.observed_id;
   msg.relative = to_message(sighting.x_AB);
-  const std::vector<double> packed = pack_upper_triangle(sighting.covariance);
-  std::copy(packed.begin(), packed.end(), msg.covariance);
+  const auto pack3 = [](const Eigen::Matrix3d& P, double* out) {
+    const std::vector<double> packed = pack_upper_triangle(P);
+    std::copy(packed.begin(), packed.end(), out);
+  };
+  pack3(sighting.covariance, msg.covariance);
+  msg.observer_seq = sighting.observer_seq;
+  msg.observer_in_local = to_message(sighting.x_LA);
+  pack3(sighting.cov_LA, msg.observer_covariance);
+  msg.observed_seq = sighting.observed_seq;
+  msg.observed_in_local = to_message(sighting.x_LB);
+  pack3(sighting.cov_LB, msg.observed_covariance);
   if (auto checked = from_message(msg, DecodeLimits{}); !checked) return checked.rejection();
   return msg;
 }

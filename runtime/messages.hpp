@@ -50,13 +50,22 @@ struct CorrectedFrames {
   std::vector<CorrectedFrame> frames;  // distinct robot ids
 };
 
-// Robot B (observed_id) seen from robot A (observer_id) at utime: lets B join.
+// Robot B (observed_id) seen from robot A (observer_id) at utime: lets B join
+// (DESIGN §5). Besides the measurement x_AB it carries where each robot was in
+// its own local map at that moment, which the server cannot know by itself.
+// Mirrors lmf::fusion::RobotSighting field by field.
 struct Sighting {
   std::int64_t utime = 0;
   int observer_id = 0;
   int observed_id = 0;
   Pose2 x_AB;  // observed robot B in the observer's robot frame A
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // Cov of x_AB, symmetric PSD
+  std::int64_t observer_seq = 0;  // A's local map in progress at utime
+  Pose2 x_LA;                     // A's pose in that local map
+  Eigen::Matrix3d cov_LA = Eigen::Matrix3d::Zero();
+  std::int64_t observed_seq = 0;  // B's local map in progress at utime
+  Pose2 x_LB;                     // B's pose in that local map
+  Eigen::Matrix3d cov_LB = Eigen::Matrix3d::Zero();
 };
 
 }  // namespace lmf::runtime

@@ -95,6 +95,11 @@ Sighting make_sighting() {
   s.observed_id = 1;
   s.x_AB = Pose2(2.0, 0.3, -2.0);
   s.covariance = Eigen::Vector3d(0.01, 0.01, 0.002).asDiagonal();
+  s.observer_seq = 4;
+  s.x_LA = Pose2(5.0, 1.0, 0.5);
+  s.cov_LA = random_covariance(3, 2, 9);
+  s.observed_seq = 0;
+  s.x_LB = Pose2();  // B at the origin of its local map, exactly known
   return s;
 }
 
@@ -201,6 +206,12 @@ TEST(Convert, SightingRoundTrips) {
   EXPECT_EQ(back.value().observed_id, 1);
   EXPECT_TRUE(lmf::is_near(back.value().x_AB, s.x_AB, 0.0, 0.0));
   EXPECT_TRUE(lmf::testing::matrices_near(back.value().covariance, s.covariance, 0.0));
+  EXPECT_EQ(back.value().observer_seq, 4);
+  EXPECT_TRUE(lmf::is_near(back.value().x_LA, s.x_LA, 0.0, 0.0));
+  EXPECT_TRUE(lmf::testing::matrices_near(back.value().cov_LA, s.cov_LA, 0.0));
+  EXPECT_EQ(back.value().observed_seq, 0);
+  EXPECT_TRUE(lmf::is_near(back.value().x_LB, s.x_LB, 0.0, 0.0));
+  EXPECT_TRUE(lmf::testing::matrices_near(back.value().cov_LB, Eigen::Matrix3d::Zero(), 0.0));
 }
 
 TEST(Convert, AcksRoundTrip) {
@@ -323,6 +334,9 @@ TEST(ConvertRejects, NonFinite) {
   auto sighting = rt::to_message(make_sighting()).value();
   sighting.covariance[5] = -std::numeric_limits<double>::infinity();
   EXPECT_EQ(reason_of(through_bytes<Sighting>(sighting)), RejectReason::kNonFinite);
+  sighting = rt::to_message(make_sighting()).value();
+  sighting.observer_in_local.y = kNan;
+  EXPECT_EQ(reason_of(through_bytes<Sighting>(sighting)), RejectReason::kNonFinite);
   auto frames = rt::to_message(make_frames()).value();
   frames.frames[1].y = kNan;
   EXPECT_EQ(reason_of(through_bytes<CorrectedFrames>(frames)), RejectReason::kNonFinite);
@@ -380,6 +394,9 @@ TEST(ConvertRejects, IndefiniteCovariance) {
   EXPECT_EQ(reason_of(through_bytes<lmf::LocalMapSnapshot>(map)), RejectReason::kCovarianceNotPsd);
   auto sighting = rt::to_message(make_sighting()).value();
   sighting.covariance[5] = -1e-4;  // a negative variance
+  EXPECT_EQ(reason_of(through_bytes<Sighting>(sighting)), RejectReason::kCovarianceNotPsd);
+  sighting = rt::to_message(make_sighting()).value();
+  sighting.observed_covariance[1] = 0.5;  // off-diagonal without variances
   EXPECT_EQ(reason_of(through_bytes<Sighting>(sighting)), RejectReason::kCovarianceNotPsd);
   auto frames = rt::to_message(make_frames()).value();
   frames.covariance[1] = {1.0, 0.0, 1.1, 1.0, 0.0, 1.0};
