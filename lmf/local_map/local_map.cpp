@@ -98,6 +98,11 @@ ScanReport LocalMap::update(int64_t utime, const Pose2& odometry, const std::vec
   for (const ObservedSegment& e : observations) {
     if (usable(e)) {
       usable_observations.push_back(e);
+      // Step 2: the per-view model error on top of the fit's point noise.
+      usable_observations.back().covariance +=
+          Eigen::Vector2d(config_.observation_lateral_noise_m * config_.observation_lateral_noise_m,
+                          config_.observation_angular_noise_rad * config_.observation_angular_noise_rad)
+              .asDiagonal();
     } else {
       ++report.observations_rejected;
     }
@@ -184,8 +189,36 @@ std::vector<LocalMap::Pairing> LocalMap::joint_update(std::vector<Candidate> can
   measurements.reserve(candidates.size());
   for (Candidate& c : candidates) measurements.push_back(std::move(c.measurement));
 
-  const std::vector<std::size_t> kept = spmap::incremental_joint_compatibility(
+  std::vector<std::size_t> kept = spmap::incremental_joint_compatibility(
       map_, measurements, config_.joint_alpha, config_.careful_inverse_tolerance);
+  // The greedy visiting order lets one early spurious pairing (an accidental
+  // match with a small distance) exclude the right set when the robot's
+  // predicted pose is off. Restarts: the first rejected candidates, one at a
+  // time, are visited first (then the rest by distance); the largest compatible
+  // set wins, the first one found on ties.
+  if (kept.size() < candidates.size() && config_.joint_compatibility_restarts > 0) {
+    std::vector<bool> in_first(candidates.size(), false);
+    for (std::size_t k : kept) in_first[k] = true;
+    std::size_t restarts = 0;
+    for (std::size_t seed = 0; seed < candidates.size() && restarts < config_.joint_compatibility_restarts;
+         ++seed) {
+      if (in_first[seed]) continue;
+      ++restarts;
+      std::vector<std::size_t> order = {seed};
+      for (std::size_t k = 0; k < candidates.size(); ++k) {
+        if (k != seed) order.push_back(k);
+      }
+      std::vector<spmap::ImplicitMeasurement> reordered;
+      reordered.reserve(order.size());
+      for (std::size_t k : order) reordered.push_back(measurements[k]);
+      const std::vector<std::size_t> kept_here = spmap::incremental_joint_compatibility(
+          map_, reordered, config_.joint_alpha, config_.careful_inverse_tolerance);
+      if (kept_here.size() <= kept.size()) continue;
+      kept.clear();
+      for (std::size_t k : kept_here) kept.push_back(order[k]);
+    }
+    report.joint_compatibility_restarts = static_cast<int>(restarts);
+  }
   report.pairings_accepted_joint = static_cast<int>(kept.size());
   report.pairings_rejected_joint = static_cast<int>(candidates.size() - kept.size());
   if (kept.empty()) return pairings;

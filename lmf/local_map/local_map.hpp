@@ -50,6 +50,7 @@ struct ScanReport {
   // Step 4: incremental joint compatibility over the individually accepted ones.
   int pairings_rejected_joint = 0;
   int pairings_accepted_joint = 0;
+  int joint_compatibility_restarts = 0;  // extra JC runs with another first candidate
   // Step 5: rows of the stacked update and those the careful inversion dropped.
   int update_rows = 0;
   int update_rows_dropped = 0;

@@ -32,6 +32,10 @@ void LocalMapConfig::validate() const {
   require(finite_nonnegative(odom_noise_floor_m), "odom_noise_floor_m", odom_noise_floor_m, "finite and >= 0");
   require(finite_nonnegative(odom_noise_floor_rad), "odom_noise_floor_rad", odom_noise_floor_rad,
           "finite and >= 0");
+  require(finite_nonnegative(observation_lateral_noise_m), "observation_lateral_noise_m",
+          observation_lateral_noise_m, "finite and >= 0");
+  require(finite_nonnegative(observation_angular_noise_rad), "observation_angular_noise_rad",
+          observation_angular_noise_rad, "finite and >= 0");
   require(probability(pairing_alpha), "pairing_alpha", pairing_alpha, "in (0, 1)");
   require(finite_nonnegative(overlap_gap_tolerance_m), "overlap_gap_tolerance_m", overlap_gap_tolerance_m,
           "finite and >= 0");

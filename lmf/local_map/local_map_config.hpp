@@ -24,9 +24,24 @@ struct LocalMapConfig {
   double odom_noise_floor_m = 0.001;           // std added to x and y of every step (m, >= 0)
   double odom_noise_floor_rad = 0.0005;        // std added to the heading of every step (rad, >= 0)
 
+  // --- Step 2: observation noise. The extraction's covariance of p_E models the
+  // independent range noise of the points only; a real wall is not a perfect
+  // line and each view fits it a little differently (partial views, clutter at
+  // the ends), an error shared by all points of one view that the fit cannot
+  // see. The filter adds it as independent noise per observation:
+  // Cov(p_E) += diag(lateral², angular²). Without it the map grows overconfident
+  // on real logs (robot NEES against the belgioioso reference ~50-200 instead of
+  // ~3) and good pairings start failing the tests. Set both to 0 for data whose
+  // walls are perfect lines (the simulator).
+  double observation_lateral_noise_m = 0.03;    // std added to the lateral error (m, >= 0)
+  double observation_angular_noise_rad = 0.02;  // std added to the angular error (rad, >= 0)
+
   // --- Step 3: pairing an observation E with a map segment S.
-  // Individual Mahalanobis test: d² < chi2inv(1 - pairing_alpha, 2).
-  double pairing_alpha = 0.01;
+  // Individual Mahalanobis test: d² < chi2inv(1 - pairing_alpha, 2). Loose on
+  // purpose: a large odometry heading error (turning on the spot) moves every
+  // observation together, so each one alone looks unlikely while the joint test
+  // (step 4) still tells right from wrong.
+  double pairing_alpha = 0.001;
   // Overlap test: E's extent projected on S's axis must overlap S's extent or
   // leave a gap shorter than this (m). Larger than the laser's point spacing,
   // smaller than a door.
@@ -34,6 +49,10 @@ struct LocalMapConfig {
 
   // --- Step 4: incremental joint compatibility, chi2 at the joint dof.
   double joint_alpha = 0.01;
+  // When the joint test rejects some candidates, rerun it up to this many times,
+  // each time visiting one of the rejected candidates first; keep the largest
+  // compatible set (0: one greedy pass in order of individual distance).
+  std::size_t joint_compatibility_restarts = 3;
 
   // --- Step 5 (and every inversion of an innovation covariance): careful
   // inversion stops when the best pivot < tolerance · largest pivot (DESIGN §6).

@@ -1,0 +1,48 @@
+#include "lmf/local_map/local_map_config_json.hpp"
+
+#include <stdexcept>
+#include <string>
+
+#include "lmf/scan/extraction_config_json.hpp"
+
+namespace lmf {
+
+void read_local_map_config(io::JsonReader& reader, LocalMapConfig& config) {
+  reader.read("odom_translation_noise_ratio", config.odom_translation_noise_ratio, io::non_negative());
+  reader.read("odom_rotation_noise_ratio", config.odom_rotation_noise_ratio, io::non_negative());
+  reader.read("odom_drift_rad_per_m", config.odom_drift_rad_per_m, io::non_negative());
+  reader.read("odom_noise_floor_m", config.odom_noise_floor_m, io::non_negative());
+  reader.read("odom_noise_floor_rad", config.odom_noise_floor_rad, io::non_negative());
+  reader.read("observation_lateral_noise_m", config.observation_lateral_noise_m, io::non_negative());
+  reader.read("observation_angular_noise_rad", config.observation_angular_noise_rad, io::non_negative());
+  reader.read("pairing_alpha", config.pairing_alpha, io::in_open(0.0, 1.0));
+  reader.read("overlap_gap_tolerance_m", config.overlap_gap_tolerance_m, io::non_negative());
+  reader.read("joint_alpha", config.joint_alpha, io::in_open(0.0, 1.0));
+  reader.read("joint_compatibility_restarts", config.joint_compatibility_restarts);
+  reader.read("careful_inverse_tolerance", config.careful_inverse_tolerance, io::in_open(0.0, 1.0));
+  reader.read("fusion_alpha", config.fusion_alpha, io::in_open(0.0, 1.0));
+  reader.read("constraints_enabled", config.constraints_enabled);
+  reader.read("constraint_max_angle_rad", config.constraint_max_angle_rad, io::non_negative());
+  reader.read("constraint_alpha", config.constraint_alpha, io::in_open(0.0, 1.0));
+  reader.read("ship_distance_m", config.ship_distance_m, io::positive());
+  reader.read("max_segments", config.max_segments, io::positive());
+  reader.read("covariance_tolerance", config.covariance_tolerance, io::non_negative());
+  if (io::JsonReader* extraction = reader.optional_section("extraction")) {
+    read_extraction_config(*extraction, config.extraction);
+  }
+}
+
+LocalMapConfig load_local_map_config(const std::filesystem::path& file) {
+  io::JsonReader reader = io::JsonReader::from_file(file);
+  LocalMapConfig config;
+  read_local_map_config(reader, config);
+  reader.finish();
+  try {
+    config.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(file.string() + ": " + e.what());
+  }
+  return config;
+}
+
+}  // namespace lmf

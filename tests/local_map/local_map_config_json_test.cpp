@@ -1,0 +1,53 @@
+// LocalMapConfig from JSON: known keys set, unknown keys and bad values rejected by name.
+#include "lmf/local_map/local_map_config_json.hpp"
+
+#include <stdexcept>
+#include <string>
+
+#include <gtest/gtest.h>
+
+namespace lmf {
+namespace {
+
+std::string error_of(const std::string& text) {
+  try {
+    io::JsonReader reader = io::JsonReader::from_string(text, "test.json");
+    LocalMapConfig config;
+    read_local_map_config(reader, config);
+    reader.finish();
+    config.validate();
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "no exception";
+}
+
+TEST(LocalMapConfigJson, ReadsKnownKeysAndTheExtractionSection) {
+  io::JsonReader reader = io::JsonReader::from_string(
+      R"({"ship_distance_m": 12.5, "constraints_enabled": false, "max_segments": 40,
+          "observation_angular_noise_rad": 0.0, "joint_compatibility_restarts": 0,
+          "extraction": {"split_distance_m": 0.08}})",
+      "test.json");
+  LocalMapConfig config;
+  read_local_map_config(reader, config);
+  reader.finish();
+  EXPECT_EQ(config.ship_distance_m, 12.5);
+  EXPECT_FALSE(config.constraints_enabled);
+  EXPECT_EQ(config.max_segments, 40u);
+  EXPECT_EQ(config.observation_angular_noise_rad, 0.0);
+  EXPECT_EQ(config.joint_compatibility_restarts, 0u);
+  EXPECT_EQ(config.extraction.split_distance_m, 0.08);
+  EXPECT_EQ(config.pairing_alpha, LocalMapConfig{}.pairing_alpha);  // absent: default
+}
+
+TEST(LocalMapConfigJson, RejectsUnknownKeysAndBadValuesByName) {
+  EXPECT_NE(error_of(R"({"ship_distance": 10})").find("ship_distance"), std::string::npos);
+  EXPECT_NE(error_of(R"({"pairing_alpha": 1.5})").find("pairing_alpha"), std::string::npos);
+  EXPECT_NE(error_of(R"({"max_segments": -3})").find("max_segments"), std::string::npos);
+  EXPECT_NE(error_of(R"({"extraction": {"min_points": 1}})").find("min_points"), std::string::npos);
+  EXPECT_NE(error_of(R"({"extraction": {"bogus": 1}})").find("bogus"), std::string::npos);
+  EXPECT_EQ(error_of(R"({})"), "no exception");
+}
+
+}  // namespace
+}  // namespace lmf
