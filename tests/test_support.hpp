@@ -20,6 +20,7 @@ inline ::testing::AssertionResult matrices_near(const Eigen::MatrixXd& a, const 
     return ::testing::AssertionFailure() << "sizes differ: " << a.rows() << "x" << a.cols() << " vs "
                                          << b.rows() << "x" << b.cols();
   }
+  if (a.size() == 0) return ::testing::AssertionSuccess();
   const double err = (a - b).cwiseAbs().maxCoeff();
   if (err <= tolerance) return ::testing::AssertionSuccess();
   return ::testing::AssertionFailure() << "max |a - b| = " << err << " > " << tolerance << "\na =\n"
