@@ -11,6 +11,7 @@
 //   <P>GLOBAL_MAP         global_map_t        server -> monitors
 //   <P>AGENT_STATUS       agent_status_t      agents -> monitors
 //   <P>SERVER_STATUS      server_status_t     server -> monitors
+//   <P>MISSION_END        mission_end_t       player -> all (the replay is over)
 #pragma once
 
 #include <optional>
@@ -32,6 +33,7 @@ inline constexpr std::string_view kSighting = "SIGHTING";
 inline constexpr std::string_view kGlobalMap = "GLOBAL_MAP";
 inline constexpr std::string_view kAgentStatus = "AGENT_STATUS";
 inline constexpr std::string_view kServerStatus = "SERVER_STATUS";
+inline constexpr std::string_view kMissionEnd = "MISSION_END";
 }  // namespace channel_suffix
 
 // Immutable; cheap to copy.
@@ -58,6 +60,7 @@ class Channels {
   std::string global_map() const { return with_prefix(channel_suffix::kGlobalMap); }
   std::string agent_status() const { return with_prefix(channel_suffix::kAgentStatus); }
   std::string server_status() const { return with_prefix(channel_suffix::kServerStatus); }
+  std::string mission_end() const { return with_prefix(channel_suffix::kMissionEnd); }
 
   // Every channel of the system as an LCM regex ("<P>.*"), e.g. for a logger.
   std::string all() const { return prefix_ + ".*"; }

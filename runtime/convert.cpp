@@ -73,8 +73,12 @@ std::optional<Rejection> precheck(std::type_identity<lmf::scan_ack_t>, const std
                                   const DecodeLimits&) { return std::nullopt; }
 std::optional<Rejection> precheck(std::type_identity<lmf::local_map_ack_t>, const std::uint8_t*, std::size_t,
                                   const DecodeLimits&) { return std::nullopt; }
-std::optional<Rejection> precheck(std::type_identity<lmf::agent_status_t>, const std::uint8_t*, std::size_t,
-                                  const DecodeLimits&) { return std::nullopt; }
+
+std::optional<Rejection> precheck(std::type_identity<lmf::mission_end_t>, const std::uint8_t* bytes, std::size_t size,
+                                  const DecodeLimits& limits) {
+  return check_trailing_array<lmf::mission_end_t>(bytes, size, sizeof(std::int32_t), limits.max_robots,
+                                                  "mission_end_t.num_robots");
+}
 
 std::optional<Rejection> precheck(std::type_identity<lmf::laser_scan_t>, const std::uint8_t* bytes, std::size_t size,
                                   const DecodeLimits& limits) {
@@ -92,6 +96,11 @@ std::optional<Rejection> precheck(std::type_identity<lmf::server_status_t>, cons
                                   std::size_t size, const DecodeLimits&) {
   // Each reason is a string (>= 5 bytes: length + NUL) and an int64 count.
   return check_trailing_array<lmf::server_status_t>(bytes, size, 5 + 8, 1024, "server_status_t.num_reject_reasons");
+}
+
+std::optional<Rejection> precheck(std::type_identity<lmf::agent_status_t>, const std::uint8_t* bytes,
+                                  std::size_t size, const DecodeLimits&) {
+  return check_trailing_array<lmf::agent_status_t>(bytes, size, 5 + 8, 1024, "agent_status_t.num_reject_reasons");
 }
 
 // Assumption: corrected_frames_t ends with `int32_t num_robots` followed by
@@ -112,20 +121,29 @@ std::optional<Rejection> precheck(std::type_identity<lmf::corrected_frames_t>, c
 }
 
 // Assumption: local_map_t ends with `int32_t num_segments; segment_t
-// segments[num_segments]; int32_t num_covariance; double covariance[...]`.
+// segments[num_segments]; int32_t num_covariance; double covariance[...];
+// int32_t num_scan_poses; int64_t scan_utimes[...]; pose2_t scan_poses[...]`.
+// Each count is checked against the bytes left after the arrays before it.
 std::optional<Rejection> precheck(std::type_identity<lmf::local_map_t>, const std::uint8_t* bytes, std::size_t size,
                                   const DecodeLimits& limits) {
   const std::size_t base = empty_size<lmf::local_map_t>();
   if (size < base) return reject(RejectReason::kDecodeFailed, "local_map_t: truncated");
   const std::size_t segment_bytes = static_cast<std::size_t>(lmf::segment_t{}._getEncodedSizeNoHash());
-  const std::size_t segments_offset = base - 8;
+  const std::size_t pose_bytes = static_cast<std::size_t>(lmf::pose2_t{}._getEncodedSizeNoHash());
+  const std::size_t segments_offset = base - 12;
   if (auto r = check_count(bytes, size, segments_offset, segment_bytes, limits.max_segments, "local_map_t.num_segments")) {
     return r;
   }
   const std::int64_t num_segments = read_i32_be(bytes + segments_offset);
   const std::int64_t max_covariance = packed_size(3 + 2 * std::int64_t{limits.max_segments});
-  const std::size_t covariance_offset = base - 4 + static_cast<std::size_t>(num_segments) * segment_bytes;
-  return check_count(bytes, size, covariance_offset, sizeof(double), max_covariance, "local_map_t.num_covariance");
+  const std::size_t covariance_offset = segments_offset + 4 + static_cast<std::size_t>(num_segments) * segment_bytes;
+  if (auto r = check_count(bytes, size, covariance_offset, sizeof(double), max_covariance, "local_map_t.num_covariance")) {
+    return r;
+  }
+  const std::int64_t num_covariance = read_i32_be(bytes + covariance_offset);
+  const std::size_t poses_offset = covariance_offset + 4 + static_cast<std::size_t>(num_covariance) * sizeof(double);
+  return check_count(bytes, size, poses_offset, sizeof(std::int64_t) + pose_bytes, limits.max_scan_poses,
+                     "local_map_t.num_scan_poses");
 }
 
 // ---- field checks --------------------------------------------------------------
@@ -210,6 +228,7 @@ template Checked<lmf::scan_ack_t> decode_message(const void*, std::size_t, const
 template Checked<lmf::global_map_t> decode_message(const void*, std::size_t, const DecodeLimits&);
 template Checked<lmf::agent_status_t> decode_message(const void*, std::size_t, const DecodeLimits&);
 template Checked<lmf::server_status_t> decode_message(const void*, std::size_t, const DecodeLimits&);
+template Checked<lmf::mission_end_t> decode_message(const void*, std::size_t, const DecodeLimits&);
 
 // ---- covariance helpers ------------------------------------------------------------
 
@@ -376,7 +395,18 @@ Checked<LocalMapSnapshot> from_message(const lmf::local_map_t& msg, const Decode
   if (auto r = check_nonnegative(msg.robot_id, "local_map_t.robot_id")) return *r;
   if (auto r = check_nonnegative(msg.seq, "local_map_t.seq")) return *r;
   if (auto r = check_nonnegative(msg.first_scan_utime, "local_map_t.first_scan_utime")) return *r;
-  if (auto r = check_nonnegative(msg.num_scans, "local_map_t.num_scans")) return *r;
+  if (msg.num_scan_poses > limits.max_scan_poses) {
+    return reject(RejectReason::kOversized, "local_map_t: " + to_string(msg.num_scan_poses) + " scan poses > limit " +
+                                                to_string(limits.max_scan_poses));
+  }
+  const auto num_poses = static_cast<std::size_t>(std::max(msg.num_scan_poses, 0));
+  if (msg.num_scan_poses < 0 || msg.scan_utimes.size() != num_poses || msg.scan_poses.size() != num_poses ||
+      msg.num_scans != msg.num_scan_poses) {
+    return reject(RejectReason::kWrongSize, "local_map_t: num_scan_poses " + to_string(msg.num_scan_poses) + " with " +
+                                                to_string(msg.scan_utimes.size()) + " times, " +
+                                                to_string(msg.scan_poses.size()) + " poses and num_scans " +
+                                                to_string(msg.num_scans));
+  }
   if (msg.first_scan_utime > msg.utime) {
     return reject(RejectReason::kOutOfRange, "local_map_t: first_scan_utime " + to_string(msg.first_scan_utime) +
                                                  " after utime " + to_string(msg.utime));
@@ -405,6 +435,20 @@ Checked<LocalMapSnapshot> from_message(const lmf::local_map_t& msg, const Decode
   }
   out.covariance = unpack_upper_triangle(msg.covariance, n);
   if (auto r = check_covariance(out.covariance, "local_map_t.covariance")) return *r;
+  out.scan_poses.reserve(num_poses);
+  std::int64_t previous_utime = msg.first_scan_utime;
+  for (std::size_t i = 0; i < num_poses; ++i) {
+    const std::string what = "local_map_t.scan_poses[" + to_string(i) + "]";
+    const std::int64_t utime = msg.scan_utimes[i];
+    if (utime < previous_utime || utime > msg.utime) {
+      return reject(RejectReason::kOutOfRange, what + ": utime " + to_string(utime) + " outside [" +
+                                                   to_string(previous_utime) + ", " + to_string(msg.utime) + "]");
+    }
+    previous_utime = utime;
+    auto pose = pose_from(msg.scan_poses[i], what);
+    if (!pose) return pose.rejection();
+    out.scan_poses.push_back(ScanPose{utime, pose.value()});
+  }
   return out;
 }
 
@@ -433,6 +477,13 @@ Checked<lmf::local_map_t> to_message(const LocalMapSnapshot& map, const Covarian
   }
   msg.covariance = pack_upper_triangle(map.covariance);
   msg.num_covariance = static_cast<std::int32_t>(msg.covariance.size());
+  msg.num_scan_poses = static_cast<std::int32_t>(map.scan_poses.size());
+  msg.scan_utimes.reserve(map.scan_poses.size());
+  msg.scan_poses.reserve(map.scan_poses.size());
+  for (const ScanPose& pose : map.scan_poses) {
+    msg.scan_utimes.push_back(pose.utime);
+    msg.scan_poses.push_back(to_message(pose.x_LR));
+  }
   // Everything else the receiver will check, checked here first.
   if (auto checked = from_message(msg, DecodeLimits{}); !checked) return checked.rejection();
   return msg;
@@ -567,14 +618,57 @@ Checked<ScanAck> from_message(const lmf::scan_ack_t& msg, const DecodeLimits&) {
   if (auto r = check_nonnegative(msg.utime, "scan_ack_t.utime")) return *r;
   if (auto r = check_nonnegative(msg.robot_id, "scan_ack_t.robot_id")) return *r;
   if (auto r = check_nonnegative(msg.seq, "scan_ack_t.seq")) return *r;
-  return ScanAck{msg.utime, msg.robot_id, msg.seq};
+  if (auto r = check_nonnegative(msg.local_map_seq, "scan_ack_t.local_map_seq")) return *r;
+  auto x_LR = pose_from(msg.x_LR, "scan_ack_t.x_LR");
+  if (!x_LR) return x_LR.rejection();
+  auto covariance = covariance3_from(msg.covariance, 6, "scan_ack_t.covariance");
+  if (!covariance) return covariance.rejection();
+  return ScanAck{msg.utime, msg.robot_id, msg.seq, msg.local_map_seq, x_LR.value(), covariance.value()};
 }
 
-lmf::scan_ack_t to_message(const ScanAck& ack) {
+Checked<lmf::scan_ack_t> to_message(const ScanAck& ack, const CovarianceTolerance& tolerance) {
+  if (auto r = check_covariance(ack.covariance, "ScanAck.covariance", tolerance)) return *r;
   lmf::scan_ack_t msg;
   msg.utime = ack.utime;
   msg.robot_id = ack.robot_id;
   msg.seq = ack.seq;
+  msg.local_map_seq = ack.local_map_seq;
+  msg.x_LR = to_message(ack.x_LR);
+  const std::vector<double> packed = pack_upper_triangle(ack.covariance);
+  std::copy(packed.begin(), packed.end(), msg.covariance);
+  if (auto checked = from_message(msg, DecodeLimits{}); !checked) return checked.rejection();
+  return msg;
+}
+
+// ---- mission end -----------------------------------------------------------------------------------
+
+Checked<MissionEnd> from_message(const lmf::mission_end_t& msg, const DecodeLimits& limits) {
+  if (msg.num_robots > limits.max_robots) {
+    return reject(RejectReason::kOversized, "mission_end_t: " + to_string(msg.num_robots) + " robots > limit " +
+                                                to_string(limits.max_robots));
+  }
+  if (msg.num_robots < 0 || msg.robot_ids.size() != static_cast<std::size_t>(msg.num_robots)) {
+    return reject(RejectReason::kWrongSize, "mission_end_t: num_robots " + to_string(msg.num_robots) + " but " +
+                                                to_string(msg.robot_ids.size()) + " ids");
+  }
+  if (auto r = check_nonnegative(msg.utime, "mission_end_t.utime")) return *r;
+  std::set<int> seen;
+  for (std::size_t i = 0; i < msg.robot_ids.size(); ++i) {
+    const std::string what = "mission_end_t.robot_ids[" + to_string(i) + "]";
+    if (auto r = check_nonnegative(msg.robot_ids[i], what)) return *r;
+    if (!seen.insert(msg.robot_ids[i]).second) {
+      return reject(RejectReason::kOutOfRange, what + ": robot " + to_string(msg.robot_ids[i]) + " listed twice");
+    }
+  }
+  return MissionEnd{msg.utime, std::vector<int>(msg.robot_ids.begin(), msg.robot_ids.end())};
+}
+
+Checked<lmf::mission_end_t> to_message(const MissionEnd& end) {
+  lmf::mission_end_t msg;
+  msg.utime = end.utime;
+  msg.num_robots = static_cast<std::int32_t>(end.robot_ids.size());
+  msg.robot_ids.assign(end.robot_ids.begin(), end.robot_ids.end());
+  if (auto checked = from_message(msg, DecodeLimits{}); !checked) return checked.rejection();
   return msg;
 }
 

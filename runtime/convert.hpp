@@ -37,6 +37,7 @@
 #include "lmf/local_map/local_map_snapshot.hpp"
 #include "lmf/local_map_ack_t.hpp"
 #include "lmf/local_map_t.hpp"
+#include "lmf/mission_end_t.hpp"
 #include "lmf/pose2_t.hpp"
 #include "lmf/scan_ack_t.hpp"
 #include "lmf/server_status_t.hpp"
@@ -51,7 +52,8 @@ struct DecodeLimits {
   std::size_t max_message_bytes = 8u << 20;  // 8 MiB: a 512-segment local map is ~4.2 MB
   int max_beams = 8192;                      // per laser scan
   int max_segments = 512;                    // per local map (n = 1027 state dims)
-  int max_robots = 256;                      // per corrected_frames_t
+  int max_robots = 256;                      // per corrected_frames_t and mission_end_t
+  int max_scan_poses = 65536;                // per local map (a parked robot keeps scanning)
 };
 
 // Tolerances of the covariance checks (relative to the matrix's own scale).
@@ -93,8 +95,9 @@ lmf::pose2_t to_message(const Pose2& pose);
 Checked<RobotScan> from_message(const lmf::laser_scan_t& msg, const DecodeLimits& limits = {});
 lmf::laser_scan_t to_message(const RobotScan& scan);  // ranges and angles become float
 
-// The snapshot's scan_poses are not shipped (the fusion does not need them):
-// num_scans carries their count, and a decoded snapshot has none.
+// The snapshot's scan_poses travel at the end of the message (the fusion does
+// not need them; the server writes trajectories from them). num_scans repeats
+// their count and must agree with it.
 Checked<LocalMapSnapshot> from_message(const lmf::local_map_t& msg, const DecodeLimits& limits = {});
 Checked<lmf::local_map_t> to_message(const LocalMapSnapshot& map, const CovarianceTolerance& tolerance = {});
 
@@ -106,7 +109,10 @@ Checked<Sighting> from_message(const lmf::sighting_t& msg, const DecodeLimits& l
 Checked<lmf::sighting_t> to_message(const Sighting& sighting, const CovarianceTolerance& tolerance = {});
 
 Checked<ScanAck> from_message(const lmf::scan_ack_t& msg, const DecodeLimits& limits = {});
-lmf::scan_ack_t to_message(const ScanAck& ack);
+Checked<lmf::scan_ack_t> to_message(const ScanAck& ack, const CovarianceTolerance& tolerance = {});
+
+Checked<MissionEnd> from_message(const lmf::mission_end_t& msg, const DecodeLimits& limits = {});
+Checked<lmf::mission_end_t> to_message(const MissionEnd& end);
 
 Checked<LocalMapAck> from_message(const lmf::local_map_ack_t& msg, const DecodeLimits& limits = {});
 lmf::local_map_ack_t to_message(const LocalMapAck& ack);
@@ -120,6 +126,7 @@ template <> struct MessageOf<CorrectedFrames> { using type = lmf::corrected_fram
 template <> struct MessageOf<Sighting> { using type = lmf::sighting_t; };
 template <> struct MessageOf<ScanAck> { using type = lmf::scan_ack_t; };
 template <> struct MessageOf<LocalMapAck> { using type = lmf::local_map_ack_t; };
+template <> struct MessageOf<MissionEnd> { using type = lmf::mission_end_t; };
 
 template <class Core>
 Checked<Core> decode(const void* data, std::size_t size, const DecodeLimits& limits = {}) {

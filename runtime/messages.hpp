@@ -20,11 +20,22 @@ struct RobotScan {
   LaserScan scan;
 };
 
-// "Agent robot_id has processed scan seq" (lockstep replay).
+// "Agent robot_id has processed scan seq" (lockstep replay), with the agent's
+// state after that scan (and after shipping, if the scan made the map ship):
+// what a sighting at that time needs from this robot (DESIGN §5, joining).
 struct ScanAck {
   std::int64_t utime = 0;
   int robot_id = 0;
   std::int64_t seq = 0;
+  std::int64_t local_map_seq = 0;  // the local map in progress after the scan
+  Pose2 x_LR;                      // the robot in that local map
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // Cov(p_R), symmetric PSD
+};
+
+// The replay is over: the listed robots' agents ship what they hold.
+struct MissionEnd {
+  std::int64_t utime = 0;
+  std::vector<int> robot_ids;  // distinct, >= 0
 };
 
 // The server's answer to local map (robot_id, seq).

@@ -30,6 +30,7 @@ TEST(Channels, DefaultPrefixAndNames) {
   EXPECT_EQ(c.global_map(), "LMF_GLOBAL_MAP");
   EXPECT_EQ(c.agent_status(), "LMF_AGENT_STATUS");
   EXPECT_EQ(c.server_status(), "LMF_SERVER_STATUS");
+  EXPECT_EQ(c.mission_end(), "LMF_MISSION_END");
   EXPECT_EQ(c.scan_robot("LMF_SCAN_12"), 12);
   EXPECT_FALSE(c.scan_robot("LMF_SCAN_ACK").has_value());
   EXPECT_FALSE(c.scan_robot("LMF_SCAN_").has_value());

@@ -20,6 +20,7 @@ using lmf::runtime::CorrectedFrame;
 using lmf::runtime::CorrectedFrames;
 using lmf::runtime::DecodeLimits;
 using lmf::runtime::LocalMapAck;
+using lmf::runtime::MissionEnd;
 using lmf::runtime::RejectReason;
 using lmf::runtime::RobotScan;
 using lmf::runtime::ScanAck;
@@ -66,7 +67,9 @@ lmf::LocalMapSnapshot make_map(int segments) {
   }
   const int n = 3 + 2 * segments;
   map.covariance = random_covariance(n, std::max(1, n - 2), 7);  // singular on purpose: PSD, not PD
-  map.scan_poses.resize(4);
+  for (int i = 0; i < 4; ++i) {  // the first at first_utime, as LocalMap records them
+    map.scan_poses.push_back({1000 + 5000 * i, Pose2(0.5 * i, 0.01 * i, -0.1 * i)});
+  }
   return map;
 }
 
@@ -108,6 +111,12 @@ template <class Core, class Msg>
 Checked<Core> through_bytes(const Msg& msg, const DecodeLimits& limits = {}) {
   const std::vector<std::uint8_t> bytes = rt::encode_message(msg);
   return rt::decode<Core>(bytes.data(), bytes.size(), limits);
+}
+
+// Overwrites the big-endian int32 at `offset`.
+void poke_i32(std::vector<std::uint8_t>& bytes, std::size_t offset, std::int32_t value) {
+  const auto v = static_cast<std::uint32_t>(value);
+  for (int i = 0; i < 4; ++i) bytes[offset + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(v >> (24 - 8 * i));
 }
 
 // ---- round trips -----------------------------------------------------------------
@@ -163,7 +172,40 @@ TEST(Convert, LocalMapRoundTripsAndPacksRowByRow) {
     EXPECT_NEAR(m.segments[i].length_m, map.segments[i].length_m, 1e-6);
   }
   EXPECT_TRUE(lmf::testing::matrices_near(m.covariance, map.covariance, 0.0));
-  EXPECT_TRUE(m.scan_poses.empty());
+  ASSERT_EQ(m.scan_poses.size(), 4u);
+  for (std::size_t i = 0; i < 4; ++i) {
+    EXPECT_EQ(m.scan_poses[i].utime, map.scan_poses[i].utime);
+    EXPECT_TRUE(lmf::is_near(m.scan_poses[i].x_LR, map.scan_poses[i].x_LR, 0.0, 0.0));
+  }
+}
+
+TEST(Convert, LocalMapScanPosesAreChecked) {
+  // num_scans repeats the count of scan poses and must agree with it.
+  auto msg = rt::to_message(make_map(1)).value();
+  msg.num_scans = 3;
+  EXPECT_EQ(reason_of(through_bytes<lmf::LocalMapSnapshot>(msg)), RejectReason::kWrongSize);
+  // Times and poses must have the same count (the arrays share num_scan_poses,
+  // so only an in-process message can disagree).
+  msg = rt::to_message(make_map(1)).value();
+  msg.scan_utimes.pop_back();
+  EXPECT_EQ(reason_of(rt::from_message(msg)), RejectReason::kWrongSize);
+  // Times go forward within [first_scan_utime, utime].
+  msg = rt::to_message(make_map(1)).value();
+  std::swap(msg.scan_utimes[1], msg.scan_utimes[2]);
+  EXPECT_EQ(reason_of(through_bytes<lmf::LocalMapSnapshot>(msg)), RejectReason::kOutOfRange);
+  msg = rt::to_message(make_map(1)).value();
+  msg.scan_utimes[3] = msg.utime + 1;
+  EXPECT_EQ(reason_of(through_bytes<lmf::LocalMapSnapshot>(msg)), RejectReason::kOutOfRange);
+  msg = rt::to_message(make_map(1)).value();
+  msg.scan_utimes[0] = msg.first_scan_utime - 1;
+  EXPECT_EQ(reason_of(through_bytes<lmf::LocalMapSnapshot>(msg)), RejectReason::kOutOfRange);
+  msg = rt::to_message(make_map(1)).value();
+  msg.scan_poses[2].phi = kNan;
+  EXPECT_EQ(reason_of(through_bytes<lmf::LocalMapSnapshot>(msg)), RejectReason::kNonFinite);
+  // The sender refuses what the receiver would.
+  lmf::LocalMapSnapshot core = make_map(1);
+  core.scan_poses[1].utime = 0;
+  EXPECT_EQ(reason_of(rt::to_message(core)), RejectReason::kOutOfRange);
 }
 
 TEST(Convert, EmptyLocalMapRoundTrips) {
@@ -215,15 +257,42 @@ TEST(Convert, SightingRoundTrips) {
 }
 
 TEST(Convert, AcksRoundTrip) {
-  const auto scan_ack = through_bytes<ScanAck>(rt::to_message(ScanAck{10, 1, 99}));
-  ASSERT_TRUE(scan_ack.ok());
+  ScanAck ack;
+  ack.utime = 10;
+  ack.robot_id = 1;
+  ack.seq = 99;
+  ack.local_map_seq = 3;
+  ack.x_LR = Pose2(2.0, -1.0, 0.4);
+  ack.covariance = random_covariance(3, 3, 4);
+  const auto ack_msg = rt::to_message(ack);
+  ASSERT_TRUE(ack_msg.ok()) << ack_msg.rejection().describe();
+  const auto scan_ack = through_bytes<ScanAck>(ack_msg.value());
+  ASSERT_TRUE(scan_ack.ok()) << scan_ack.rejection().describe();
   EXPECT_EQ(scan_ack.value().utime, 10);
   EXPECT_EQ(scan_ack.value().robot_id, 1);
   EXPECT_EQ(scan_ack.value().seq, 99);
+  EXPECT_EQ(scan_ack.value().local_map_seq, 3);
+  EXPECT_TRUE(lmf::is_near(scan_ack.value().x_LR, ack.x_LR, 0.0, 0.0));
+  EXPECT_TRUE(lmf::testing::matrices_near(scan_ack.value().covariance, ack.covariance, 0.0));
+  // Right after a ship the robot sits at the new map's origin, exactly known.
+  EXPECT_TRUE(rt::to_message(ScanAck{}).ok());
   const auto map_ack = through_bytes<LocalMapAck>(rt::to_message(LocalMapAck{20, 2, 5, LocalMapAck::Status::kQueued}));
   ASSERT_TRUE(map_ack.ok());
   EXPECT_EQ(map_ack.value().seq, 5);
   EXPECT_EQ(map_ack.value().status, LocalMapAck::Status::kQueued);
+}
+
+TEST(Convert, MissionEndRoundTrips) {
+  const auto msg = rt::to_message(MissionEnd{123, {0, 4, 2}});
+  ASSERT_TRUE(msg.ok()) << msg.rejection().describe();
+  const auto back = through_bytes<MissionEnd>(msg.value());
+  ASSERT_TRUE(back.ok()) << back.rejection().describe();
+  EXPECT_EQ(back.value().utime, 123);
+  EXPECT_EQ(back.value().robot_ids, (std::vector<int>{0, 4, 2}));
+  EXPECT_EQ(reason_of(rt::to_message(MissionEnd{1, {3, 3}})), RejectReason::kOutOfRange);
+  EXPECT_EQ(reason_of(rt::to_message(MissionEnd{1, {-1}})), RejectReason::kOutOfRange);
+  EXPECT_EQ(reason_of(rt::to_message(MissionEnd{-5, {1}})), RejectReason::kOutOfRange);
+  EXPECT_TRUE(rt::to_message(MissionEnd{0, {}}).ok());
 }
 
 TEST(Convert, StatusAndGlobalMapMessagesDecode) {
@@ -246,10 +315,21 @@ TEST(Convert, StatusAndGlobalMapMessagesDecode) {
 
   lmf::agent_status_t agent{};
   agent.robot_id = 4;
-  const auto agent_bytes = rt::encode_message(agent);
+  agent.mission_done = true;
+  agent.num_reject_reasons = 1;
+  agent.reject_reasons = {"stale_sequence"};
+  agent.reject_counts = {7};
+  auto agent_bytes = rt::encode_message(agent);
   const auto agent_decoded = rt::decode_message<lmf::agent_status_t>(agent_bytes.data(), agent_bytes.size());
-  ASSERT_TRUE(agent_decoded.ok());
+  ASSERT_TRUE(agent_decoded.ok()) << agent_decoded.rejection().describe();
   EXPECT_EQ(agent_decoded.value().robot_id, 4);
+  EXPECT_TRUE(agent_decoded.value().mission_done);
+  EXPECT_EQ(agent_decoded.value().reject_counts[0], 7);
+  // Its reject list's count is pre-checked like server_status_t's.
+  const std::size_t count_at = agent_bytes.size() - (4 + 15) - 8 - 4;
+  poke_i32(agent_bytes, count_at, 1'000'000);
+  EXPECT_EQ(reason_of(rt::decode_message<lmf::agent_status_t>(agent_bytes.data(), agent_bytes.size())),
+            RejectReason::kOversized);
 }
 
 // ---- rejections ---------------------------------------------------------------------
@@ -268,12 +348,6 @@ TEST(ConvertRejects, TruncatedPaddedAndForeignBuffers) {
   EXPECT_EQ(reason_of(rt::decode<Sighting>(sighting.data(), sighting.size() - 1)), RejectReason::kDecodeFailed);
 }
 
-// Overwrites the big-endian int32 at `offset`.
-void poke_i32(std::vector<std::uint8_t>& bytes, std::size_t offset, std::int32_t value) {
-  const auto v = static_cast<std::uint32_t>(value);
-  for (int i = 0; i < 4; ++i) bytes[offset + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(v >> (24 - 8 * i));
-}
-
 TEST(ConvertRejects, ForgedCountsNeverAllocate) {
   // num_ranges sits 4 bytes before the first range: claim 2^31 - 1 beams.
   const RobotScan scan = make_scan();
@@ -286,12 +360,37 @@ TEST(ConvertRejects, ForgedCountsNeverAllocate) {
   poke_i32(bytes, num_ranges_at, -5);
   EXPECT_EQ(reason_of(rt::decode<RobotScan>(bytes.data(), bytes.size())), RejectReason::kDecodeFailed);
 
-  // local_map_t: num_covariance is the int32 before the packed values.
+  // local_map_t: num_covariance is the int32 before the packed values, which
+  // the scan poses (count, 8-byte times, 24-byte poses) follow.
   const auto msg = rt::to_message(make_map(2)).value();
   auto map_bytes = rt::encode_message(msg);
-  const std::size_t num_covariance_at = map_bytes.size() - 8 * msg.covariance.size() - 4;
+  const std::size_t poses_bytes = 4 + 32 * msg.scan_poses.size();
+  const std::size_t num_covariance_at = map_bytes.size() - poses_bytes - 8 * msg.covariance.size() - 4;
   poke_i32(map_bytes, num_covariance_at, 200'000'000);
   EXPECT_EQ(reason_of(rt::decode<lmf::LocalMapSnapshot>(map_bytes.data(), map_bytes.size())), RejectReason::kOversized);
+  poke_i32(map_bytes, num_covariance_at, static_cast<std::int32_t>(msg.covariance.size()) + 1);
+  EXPECT_EQ(reason_of(rt::decode<lmf::LocalMapSnapshot>(map_bytes.data(), map_bytes.size())),
+            RejectReason::kDecodeFailed);
+
+  // num_scan_poses is the last count, before 8-byte times and 24-byte poses.
+  map_bytes = rt::encode_message(msg);
+  const std::size_t num_scan_poses_at = map_bytes.size() - 32 * msg.scan_poses.size() - 4;
+  poke_i32(map_bytes, num_scan_poses_at, std::numeric_limits<std::int32_t>::max());
+  EXPECT_EQ(reason_of(rt::decode<lmf::LocalMapSnapshot>(map_bytes.data(), map_bytes.size())), RejectReason::kOversized);
+  poke_i32(map_bytes, num_scan_poses_at, static_cast<std::int32_t>(msg.scan_poses.size()) + 1);
+  EXPECT_EQ(reason_of(rt::decode<lmf::LocalMapSnapshot>(map_bytes.data(), map_bytes.size())),
+            RejectReason::kDecodeFailed);
+  poke_i32(map_bytes, num_scan_poses_at, -1);
+  EXPECT_EQ(reason_of(rt::decode<lmf::LocalMapSnapshot>(map_bytes.data(), map_bytes.size())),
+            RejectReason::kDecodeFailed);
+
+  // mission_end_t ends with its ids.
+  const auto end = rt::to_message(MissionEnd{5, {0, 1}}).value();
+  auto end_bytes = rt::encode_message(end);
+  poke_i32(end_bytes, end_bytes.size() - 8 - 4, 1'000'000);
+  EXPECT_EQ(reason_of(rt::decode<MissionEnd>(end_bytes.data(), end_bytes.size())), RejectReason::kOversized);
+  poke_i32(end_bytes, end_bytes.size() - 8 - 4, 3);
+  EXPECT_EQ(reason_of(rt::decode<MissionEnd>(end_bytes.data(), end_bytes.size())), RejectReason::kDecodeFailed);
 }
 
 TEST(ConvertRejects, Oversized) {
@@ -340,6 +439,12 @@ TEST(ConvertRejects, NonFinite) {
   auto frames = rt::to_message(make_frames()).value();
   frames.frames[1].y = kNan;
   EXPECT_EQ(reason_of(through_bytes<CorrectedFrames>(frames)), RejectReason::kNonFinite);
+  auto ack = rt::to_message(ScanAck{}).value();
+  ack.x_LR.x = kNan;
+  EXPECT_EQ(reason_of(through_bytes<ScanAck>(ack)), RejectReason::kNonFinite);
+  ack = rt::to_message(ScanAck{}).value();
+  ack.covariance[3] = kNan;
+  EXPECT_EQ(reason_of(through_bytes<ScanAck>(ack)), RejectReason::kNonFinite);
 
   lmf::LocalMapSnapshot core = make_map(1);
   core.covariance(0, 0) = kNan;
@@ -381,6 +486,9 @@ TEST(ConvertRejects, AsymmetricCovarianceCannotLeave) {
   CorrectedFrames frames = make_frames();
   frames.frames[1].covariance(2, 0) += 0.5;
   EXPECT_EQ(reason_of(rt::to_message(frames)), RejectReason::kCovarianceNotSymmetric);
+  ScanAck ack;
+  ack.covariance(1, 0) = 0.1;
+  EXPECT_EQ(reason_of(rt::to_message(ack)), RejectReason::kCovarianceNotSymmetric);
   // Rounding-level asymmetry is tolerated.
   map = make_map(2);
   map.covariance(1, 4) *= 1.0 + 1e-14;
@@ -401,6 +509,9 @@ TEST(ConvertRejects, IndefiniteCovariance) {
   auto frames = rt::to_message(make_frames()).value();
   frames.covariance[1] = {1.0, 0.0, 1.1, 1.0, 0.0, 1.0};
   EXPECT_EQ(reason_of(through_bytes<CorrectedFrames>(frames)), RejectReason::kCovarianceNotPsd);
+  auto ack = rt::to_message(ScanAck{}).value();
+  ack.covariance[5] = -1.0;
+  EXPECT_EQ(reason_of(through_bytes<ScanAck>(ack)), RejectReason::kCovarianceNotPsd);
   // A core matrix with a slightly negative eigenvalue, far beyond rounding.
   lmf::LocalMapSnapshot core = make_map(1);
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(core.covariance);
@@ -445,6 +556,9 @@ TEST(ConvertRejects, OutOfRange) {
   auto ack = rt::to_message(LocalMapAck{1, 1, 1, LocalMapAck::Status::kFused});
   ack.status = 9;
   EXPECT_EQ(reason_of(through_bytes<LocalMapAck>(ack)), RejectReason::kOutOfRange);
+  auto scan_ack = rt::to_message(ScanAck{}).value();
+  scan_ack.local_map_seq = -2;
+  EXPECT_EQ(reason_of(through_bytes<ScanAck>(scan_ack)), RejectReason::kOutOfRange);
 }
 
 TEST(CovarianceCheck, AcceptsSingularPsdRejectsIndefinite) {

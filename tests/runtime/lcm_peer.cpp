@@ -57,7 +57,11 @@ int main(int argc, char** argv) {
       loop.stop();
     });
     loop.every(std::chrono::milliseconds(20), [&] {
-      bus.publish(channels.scan_ack(), rt::to_message(rt::ScanAck{1000 + seq, 7, seq}));
+      rt::ScanAck ack;
+      ack.utime = 1000 + seq;
+      ack.robot_id = 7;
+      ack.seq = seq;
+      bus.publish(channels.scan_ack(), rt::to_message(ack).value());
       ++seq;
     });
   }
