@@ -1,0 +1,296 @@
+// The global map and the fusion of robot local maps into it (paper §II.C, §III;
+// DESIGN §5–6).
+//
+// State (paper eq. 11), one joint covariance over all of it:
+//   * L_r: the local-map frame of every joined robot r (a frame, child of W):
+//     where robot r's current local map began;
+//   * F_i: submap frames (children of W), each a copy of some L_r taken when a
+//     fused local map left new segments;
+//   * segments, children of their submap frame.
+// W is the local frame of the first robot's first local map (or whatever the
+// caller's join_robot() poses say).
+//
+// fuse() applies every step of DESIGN §5 to one LocalMapSnapshot: augmentation,
+// implicit measurements (eq. 12) with a geometric gate, an individual chi2 test
+// and an overlap test (several pairings per local segment allowed), incremental
+// joint compatibility, one EKF update through the careful inversion (§6),
+// geometric update of paired global segments, removal of the used local
+// segments, fusion of global segments that matched one local segment, a new
+// submap for the unpaired local segments, L_r ← L_r ⊕ x_R, and the environment
+// graph (submap frames as nodes).
+//
+// Robots join with a known frame (join_robot) or through a sighting by a joined
+// robot (add_sighting). Local maps of robots that have not joined, or that
+// arrive out of order, wait in a queue and are fused in sequence order as soon
+// as their frame is known; none is dropped. A local map older than the first
+// known frame of its robot is anchored backwards (L_k = L_{k+1} ⊕ ⊖x_R(k)).
+//
+// Failure: bad input (a snapshot with wrong sizes, NaN/inf, an asymmetric or
+// indefinite covariance, a (robot, seq) already fused or queued; a bad pose or
+// covariance in join/sighting) throws std::invalid_argument and leaves the map
+// unchanged. Not thread-safe: one caller (the server's fusion worker) at a time.
+// Pure and synchronous; the only clock is std::chrono::steady_clock, read to
+// fill FusionReport::time and never used for a decision.
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <optional>
+#include <set>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "lmf/fusion/fusion_equations.hpp"
+#include "lmf/fusion/global_state.hpp"
+#include "lmf/geometry/pose2.hpp"
+#include "lmf/local_map/local_map_snapshot.hpp"
+#include "lmf/spmap/segment_ops.hpp"
+
+namespace lmf::fusion {
+
+// How much the fusion checks P afterwards (FusionReport::min_ldlt_pivot/min_eigenvalue).
+enum class HealthCheck {
+  kNone,
+  kTouched,    // LDLT pivots of the marginal of the entities the update touched (cheap; default)
+  kFullLdlt,   // LDLT pivots of the whole P: O(n³), for tests and offline checks
+  kFullEigen,  // smallest eigenvalue of the whole P: O(n³) and slower still
+};
+
+struct GlobalMapConfig {
+  double alpha = 0.05;                 // significance of the individual and joint chi2 tests
+  // Geometric gate in W (cheap pre-filter before the chi2 test): a pair passes
+  // if its angle, lateral offset and extent gap are within the fixed part plus
+  // gate_sigmas conservative standard deviations of the frames and segments.
+  double gate_angle_rad = 0.2;
+  double gate_distance_m = 0.5;
+  double gate_gap_m = 0.5;
+  double gate_sigmas = 4.0;
+  // Overlap test: the local segment projected on the global one must overlap
+  // its extent by at least this much (negative: a gap of that size is allowed).
+  double min_overlap_m = 0.0;
+  // Careful inversion: a pivot is redundant below this fraction of the largest one
+  double careful_relative_tolerance = 1e-9;
+  // ... or below this absolute value (m², rad²): a relation known this well
+  // carries no information.
+  double careful_absolute_floor = 1e-14;
+  // Snapshot validation: symmetry and PSD within tolerance · max(1, max |P_ii|).
+  double snapshot_tolerance = 1e-9;
+  // Coordinates beyond this (m) are rejected as garbage.
+  double max_coordinate_m = 1e6;
+  // The first local map from any robot, while no robot has joined, joins that
+  // robot with L = W (zero covariance).
+  bool first_robot_defines_world = true;
+  HealthCheck health = HealthCheck::kTouched;
+  // Frames of fused local maps remembered (estimate + marginal) for sightings
+  // that arrive after their observer's local map was fused.
+  int frame_history_per_robot = 256;
+
+  // Throws std::invalid_argument naming the first bad field.
+  void validate() const;
+};
+
+// Wall-clock seconds per phase of one fusion (measurement only).
+struct PhaseTimes {
+  double validate_s = 0.0;
+  double augment_s = 0.0;
+  double gate_s = 0.0;
+  double individual_s = 0.0;
+  double joint_s = 0.0;
+  double update_s = 0.0;
+  double geometric_s = 0.0;
+  double frames_s = 0.0;   // new submap and L_r ← L_r ⊕ x_R
+  double remove_s = 0.0;
+  double health_s = 0.0;
+  double total_s = 0.0;
+};
+
+struct MapCounts {
+  int segments = 0;
+  int submaps = 0;
+  int robots_joined = 0;
+  int graph_edges = 0;
+  int queued_local_maps = 0;
+  std::int64_t state_dimension = 0;
+};
+
+struct FusionReport {
+  int robot_id = 0;
+  std::int64_t seq = 0;
+  int local_segments = 0;
+  bool anchored_backward = false;  // frame derived from the robot's next frame
+
+  // Pairing funnel: pairs considered = global segments x local segments.
+  std::int64_t pairs_considered = 0;
+  std::int64_t gate_rejected = 0;
+  int chi2_rejected = 0;
+  int overlap_rejected = 0;
+  int jc_candidates = 0;  // passed gate, chi2 and overlap
+  int jc_rejected = 0;
+  int pairings_accepted = 0;
+
+  // EKF update (eq. 9).
+  int update_rows = 0;
+  int rows_dropped = 0;  // careful inversion (DESIGN §6)
+  int rows_kept = 0;     // k of the rank-k covariance update
+  double update_distance2 = 0.0;
+  std::int64_t update_dimension = 0;  // state size during the update (augmented)
+
+  // Geometric update and feature fusion.
+  int segments_extended = 0;
+  int local_segments_removed = 0;
+  int global_segments_fused = 0;
+  int global_fusions_rejected = 0;  // pairs that matched one local segment but failed their own test
+  int new_segments = 0;
+  std::optional<EntityId> new_submap;
+  Pose2 x_WL_next;  // the robot's next local frame
+
+  // Covariance health after the fusion (see HealthCheck).
+  HealthCheck health_scope = HealthCheck::kNone;
+  std::optional<double> min_ldlt_pivot;
+  std::optional<double> min_eigenvalue;
+
+  MapCounts size_after;
+  PhaseTimes time;
+};
+
+// A robot's current local frame L_r in W: the origin of its local map `seq`.
+struct CorrectedFrame {
+  int robot_id = 0;
+  std::int64_t seq = 0;
+  Pose2 x_WL;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // of p_L (L's own frame)
+};
+
+struct SegmentView {
+  EntityId id = 0;
+  EntityId submap = 0;
+  Pose2 x_WS;  // midpoint frame, x along the segment
+  double length_m = 0.0;
+  Eigen::Vector2d start_W = Eigen::Vector2d::Zero();
+  Eigen::Vector2d end_W = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();  // (lateral m, angle rad) seen from W
+};
+
+struct SubmapView {
+  EntityId frame = 0;
+  int robot_id = 0;
+  std::int64_t seq = 0;  // the local map it was made from
+  Pose2 x_WF;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+  int segments = 0;
+};
+
+struct GraphEdge {
+  enum class Kind { kConsecutive, kPaired };
+  EntityId a = 0;  // submap frames, a < b
+  EntityId b = 0;
+  Kind kind = Kind::kPaired;
+};
+
+enum class SightingStatus {
+  kJoined,               // the observed robot joined through this sighting
+  kJoinedApproximately,  // joined, but the observer's frame at that time came from
+                         // the frame history (its correlations with the map lost)
+  kPending,              // the observer is not there yet; kept and retried
+  kIgnored,              // the observed robot had already joined
+};
+
+struct SightingResult {
+  SightingStatus status = SightingStatus::kPending;
+  std::vector<FusionReport> fused;  // local maps fused because of it
+};
+
+class GlobalMap {
+ public:
+  // Throws std::invalid_argument for an invalid config.
+  explicit GlobalMap(GlobalMapConfig config = {});
+
+  const GlobalMapConfig& config() const { return config_; }
+
+  // Robot `robot_id` joins: its local map `seq` starts at x_WL, whose
+  // perturbation (in L's own frame) has `covariance`, independent of the map.
+  // Queued local maps of the robot are fused. Throws std::invalid_argument if
+  // already joined or the inputs are not finite / not symmetric PSD.
+  std::vector<FusionReport> join_robot(int robot_id, const Pose2& x_WL,
+                                       const Eigen::Matrix3d& covariance = Eigen::Matrix3d::Zero(),
+                                       std::int64_t seq = 0);
+
+  // A joined robot saw another one (see RobotSighting). Throws
+  // std::invalid_argument for non-finite values, bad covariances or a robot
+  // seeing itself.
+  SightingResult add_sighting(const RobotSighting& sighting);
+
+  // Validates the snapshot and fuses it, or queues it if its robot has not
+  // joined or an earlier local map of the robot is missing. Returns one report
+  // per local map fused by this call (empty when queued), in fusion order.
+  std::vector<FusionReport> fuse(const LocalMapSnapshot& snapshot);
+
+  // Throws std::invalid_argument describing what is wrong with the snapshot.
+  void validate(const LocalMapSnapshot& snapshot) const;
+
+  bool is_joined(int robot_id) const;
+  bool has_fused(int robot_id, std::int64_t seq) const;
+  bool is_queued(int robot_id, std::int64_t seq) const;
+  int queued_count() const;
+  std::vector<int> robots() const;  // joined robots, ascending
+
+  // x_WLr and its covariance; nullopt if the robot has not joined.
+  std::optional<CorrectedFrame> corrected_frame(int robot_id) const;
+  std::vector<CorrectedFrame> corrected_frames() const;
+
+  // Map contents (for export and display).
+  std::vector<SegmentView> segments() const;
+  std::vector<SubmapView> submaps() const;
+  std::vector<GraphEdge> graph_edges() const;
+  MapCounts counts() const;
+  const GlobalState& state() const { return state_; }
+
+  // Pre-sizes the covariance buffer (e.g. a server expecting a large map).
+  void reserve(Eigen::Index dimension) { state_.reserve(dimension); }
+
+ private:
+  struct FrameSlot {
+    EntityId frame = 0;
+    std::optional<EntityId> robot;  // pre-placed robot of a backward-anchored local map
+  };
+  struct RobotRecord {
+    bool joined = false;
+    std::int64_t next_seq = 0;  // the local map whose origin the forward frame is
+    std::int64_t min_seq = 0;   // lowest seq whose frame is known
+    std::map<std::int64_t, FrameSlot> frames;  // frames still needed, by seq
+    std::map<std::int64_t, LocalMapSnapshot> queue;
+    std::set<std::int64_t> fused;
+    std::map<std::int64_t, std::pair<Pose2, Eigen::Matrix3d>> history;  // frame of fused seqs
+  };
+  struct SubmapRecord {
+    EntityId frame = 0;
+    int robot_id = 0;
+    std::int64_t seq = 0;
+  };
+
+  RobotRecord& robot(int robot_id) { return robots_[robot_id]; }
+  void join(int robot_id, EntityId frame, std::int64_t seq, std::vector<FusionReport>& out);
+  void prepare_backward(int robot_id, std::int64_t seq);
+  void drain(int robot_id, std::vector<FusionReport>& out);
+  void resolve_sightings(std::vector<FusionReport>& out);
+  std::optional<SightingStatus> try_resolve(const RobotSighting& sighting, std::vector<FusionReport>& out);
+  FusionReport fuse_one(int robot_id, const LocalMapSnapshot& snapshot);
+  void retire_frames(int robot_id, std::vector<EntityId>& removals);
+  void extend_to_cover(EntityId segment, const spmap::Interval& interval);
+  bool is_submap(EntityId frame) const;
+  void check_pose(const Pose2& pose, const char* what) const;
+
+  GlobalMapConfig config_;
+  GlobalState state_;
+  std::map<int, RobotRecord> robots_;
+  std::vector<SubmapRecord> submaps_;
+  std::set<std::pair<EntityId, EntityId>> paired_edges_;
+  std::deque<RobotSighting> pending_sightings_;
+  bool any_joined_ = false;
+  bool resolving_ = false;
+};
+
+}  // namespace lmf::fusion

@@ -1,0 +1,480 @@
+#include "lmf/fusion/global_state.hpp"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+#include <unordered_set>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
+#include "lmf/spmap/careful_inverse.hpp"
+
+namespace lmf::fusion {
+namespace {
+
+std::string id_text(EntityId id) { return "entity " + std::to_string(id); }
+
+// The stored lower triangle of a symmetric d x d diagonal block, as a full matrix.
+Eigen::MatrixXd symmetric_from_lower(const Eigen::Ref<const Eigen::MatrixXd>& L) {
+  Eigen::MatrixXd M = L.triangularView<Eigen::Lower>();
+  M.triangularView<Eigen::StrictlyUpper>() = M.transpose();
+  return M;
+}
+
+}  // namespace
+
+void GlobalState::reserve(Eigen::Index dimension) {
+  if (dimension <= capacity()) return;
+  Eigen::MatrixXd next(dimension, dimension);
+  for (Eigen::Index j = 0; j < n_; ++j) {
+    next.col(j).segment(j, n_ - j) = storage_.col(j).segment(j, n_ - j);
+  }
+  storage_.swap(next);
+}
+
+EntityId GlobalState::add(EntityKind kind, const Pose2& location, std::optional<EntityId> parent,
+                          double length_m) {
+  if (parent && !contains(*parent)) {
+    throw std::invalid_argument("GlobalState::add: unknown parent " + id_text(*parent));
+  }
+  const Eigen::Index d = spmap::dof(kind);
+  if (n_ + d > capacity()) {
+    // Amortised growth: one reallocation per 25 % of growth.
+    reserve(std::max<Eigen::Index>({n_ + d, capacity() + capacity() / 4, 64}));
+  }
+  // New rows of P start at zero (lower triangle: the new rows under the old
+  // columns and the new diagonal block).
+  storage_.block(n_, 0, d, n_).setZero();
+  storage_.block(n_, n_, d, d).setZero();
+  Entity e;
+  e.id = next_id_++;
+  e.kind = kind;
+  e.location = location;
+  e.length_m = length_m;
+  e.parent = parent;
+  e.offset = n_;
+  n_ += d;
+  index_.emplace(e.id, entities_.size());
+  entities_.push_back(e);
+  return e.id;
+}
+
+EntityId GlobalState::add_copy(EntityId source) {
+  const Entity src = entity(source);  // copy: add() may reallocate entities_
+  const EntityId id = add(src.kind, src.location, src.parent, src.length_m);
+  const Eigen::Index d = spmap::dof(src.kind);
+  replace_perturbation(id, {{source, Eigen::MatrixXd::Identity(d, d)}});
+  return id;
+}
+
+void GlobalState::remove(const std::vector<EntityId>& ids) {
+  if (ids.empty()) return;
+  std::unordered_set<EntityId> doomed;
+  for (const EntityId id : ids) {
+    index_of(id);  // throws for an unknown id
+    doomed.insert(id);
+  }
+  for (const Entity& e : entities_) {
+    if (e.parent && doomed.count(*e.parent) != 0 && doomed.count(e.id) == 0) {
+      throw std::invalid_argument("GlobalState::remove: " + id_text(*e.parent) + " is still the parent of " +
+                                  id_text(e.id));
+    }
+  }
+
+  // Kept rows as runs [old_begin, old_begin + size) -> [new_begin, ...).
+  struct Run {
+    Eigen::Index old_begin;
+    Eigen::Index new_begin;
+    Eigen::Index size;
+  };
+  std::vector<Run> runs;
+  std::vector<Entity> kept;
+  kept.reserve(entities_.size());
+  Eigen::Index next_offset = 0;
+  for (const Entity& e : entities_) {
+    if (doomed.count(e.id) != 0) continue;
+    const Eigen::Index d = spmap::dof(e.kind);
+    if (!runs.empty() && runs.back().old_begin + runs.back().size == e.offset &&
+        runs.back().new_begin + runs.back().size == next_offset) {
+      runs.back().size += d;
+    } else {
+      runs.push_back({e.offset, next_offset, d});
+    }
+    Entity moved = e;
+    moved.offset = next_offset;
+    kept.push_back(moved);
+    next_offset += d;
+  }
+
+  // Compaction of the lower triangle, column by column in increasing order.
+  // A destination never lies after its source (rows and columns only move up/
+  // left), and a destination column's old content was consumed earlier, so the
+  // in-place forward pass never overwrites unread data.
+  double* base = storage_.data();
+  const Eigen::Index ld = storage_.outerStride();
+  for (std::size_t r = 0; r < runs.size(); ++r) {
+    const Run& run = runs[r];
+    for (Eigen::Index c = 0; c < run.size; ++c) {
+      const Eigen::Index jo = run.old_begin + c;
+      const Eigen::Index jn = run.new_begin + c;
+      const double* src = base + jo * ld;
+      double* dst = base + jn * ld;
+      // Same run: rows jo.. of this run (lower part only).
+      if (jo != jn) {
+        std::memmove(dst + jn, src + jo, static_cast<std::size_t>(run.size - c) * sizeof(double));
+      }
+      for (std::size_t r2 = r + 1; r2 < runs.size(); ++r2) {
+        const Run& later = runs[r2];
+        if (jo == jn && later.old_begin == later.new_begin) continue;
+        std::memmove(dst + later.new_begin, src + later.old_begin, static_cast<std::size_t>(later.size) * sizeof(double));
+      }
+    }
+  }
+
+  n_ = next_offset;
+  entities_ = std::move(kept);
+  index_.clear();
+  for (std::size_t i = 0; i < entities_.size(); ++i) index_.emplace(entities_[i].id, i);
+}
+
+const Entity& GlobalState::entity(EntityId id) const { return entities_[index_of(id)]; }
+
+Entity& GlobalState::mutable_entity(EntityId id) { return entities_[index_of(id)]; }
+
+std::size_t GlobalState::index_of(EntityId id) const {
+  const auto it = index_.find(id);
+  if (it == index_.end()) throw std::invalid_argument("GlobalState: unknown " + id_text(id));
+  return it->second;
+}
+
+Eigen::MatrixXd GlobalState::block(EntityId a, EntityId b) const {
+  const Entity& ea = entity(a);
+  const Entity& eb = entity(b);
+  const Eigen::Index da = spmap::dof(ea.kind);
+  const Eigen::Index db = spmap::dof(eb.kind);
+  if (a == b) return symmetric_from_lower(storage_.block(ea.offset, ea.offset, da, da));
+  if (ea.offset > eb.offset) return storage_.block(ea.offset, eb.offset, da, db);
+  return storage_.block(eb.offset, ea.offset, db, da).transpose();
+}
+
+std::vector<Eigen::Index> GlobalState::rows_of(const std::vector<EntityId>& ids) const {
+  std::vector<Eigen::Index> rows;
+  for (const EntityId id : ids) {
+    const Entity& e = entity(id);
+    for (Eigen::Index k = 0; k < spmap::dof(e.kind); ++k) rows.push_back(e.offset + k);
+  }
+  return rows;
+}
+
+void GlobalState::write_marginal(const std::vector<EntityId>& ids, const Eigen::MatrixXd& M, bool accumulate) {
+  const std::vector<Eigen::Index> rows = rows_of(ids);
+  const auto m = static_cast<Eigen::Index>(rows.size());
+  if (M.rows() != m || M.cols() != m) {
+    throw std::invalid_argument("GlobalState: marginal is " + std::to_string(M.rows()) + "x" +
+                                std::to_string(M.cols()) + ", the entities need " + std::to_string(m));
+  }
+  for (Eigen::Index j = 0; j < m; ++j) {
+    for (Eigen::Index i = j; i < m; ++i) {
+      const Eigen::Index ri = rows[static_cast<std::size_t>(i)];
+      const Eigen::Index rj = rows[static_cast<std::size_t>(j)];
+      double& slot = ri >= rj ? storage_(ri, rj) : storage_(rj, ri);
+      slot = accumulate ? slot + M(i, j) : M(i, j);
+    }
+  }
+}
+
+void GlobalState::set_marginal(const std::vector<EntityId>& ids, const Eigen::MatrixXd& M) {
+  write_marginal(ids, M, false);
+}
+
+void GlobalState::add_to_marginal(const std::vector<EntityId>& ids, const Eigen::MatrixXd& M) {
+  write_marginal(ids, M, true);
+}
+
+Eigen::MatrixXd GlobalState::marginal(const std::vector<EntityId>& ids) const {
+  const std::vector<Eigen::Index> rows = rows_of(ids);
+  const auto m = static_cast<Eigen::Index>(rows.size());
+  Eigen::MatrixXd M(m, m);
+  for (Eigen::Index j = 0; j < m; ++j) {
+    for (Eigen::Index i = j; i < m; ++i) {
+      M(i, j) = M(j, i) = covariance(rows[static_cast<std::size_t>(i)], rows[static_cast<std::size_t>(j)]);
+    }
+  }
+  return M;
+}
+
+Eigen::MatrixXd GlobalState::columns(EntityId id) const {
+  const Entity& e = entity(id);
+  const Eigen::Index off = e.offset;
+  const Eigen::Index d = spmap::dof(e.kind);
+  Eigen::MatrixXd C(n_, d);
+  // Above the entity: its rows left of the diagonal; below: its columns.
+  C.topRows(off) = storage_.block(off, 0, d, off).transpose();
+  C.middleRows(off, d) = symmetric_from_lower(storage_.block(off, off, d, d));
+  C.bottomRows(n_ - off - d) = storage_.block(off + d, off, n_ - off - d, d);
+  return C;
+}
+
+Eigen::MatrixXd GlobalState::full_covariance() const {
+  Eigen::MatrixXd P = storage_.topLeftCorner(n_, n_).triangularView<Eigen::Lower>();
+  P.triangularView<Eigen::StrictlyUpper>() = P.transpose();
+  return P;
+}
+
+void GlobalState::set_block(EntityId a, EntityId b, const Eigen::MatrixXd& M) {
+  const Entity& ea = entity(a);
+  const Entity& eb = entity(b);
+  const Eigen::Index da = spmap::dof(ea.kind);
+  const Eigen::Index db = spmap::dof(eb.kind);
+  if (M.rows() != da || M.cols() != db) {
+    throw std::invalid_argument("GlobalState::set_block: block is " + std::to_string(M.rows()) + "x" +
+                                std::to_string(M.cols()) + ", expected " + std::to_string(da) + "x" +
+                                std::to_string(db));
+  }
+  if (a == b) {
+    storage_.block(ea.offset, ea.offset, da, da) = 0.5 * (M + M.transpose());
+  } else if (ea.offset > eb.offset) {
+    storage_.block(ea.offset, eb.offset, da, db) = M;
+  } else {
+    storage_.block(eb.offset, ea.offset, db, da) = M.transpose();
+  }
+}
+
+void GlobalState::add_to_block(EntityId a, const Eigen::MatrixXd& M) {
+  set_block(a, a, block(a, a) + 0.5 * (M + M.transpose()));
+}
+
+Pose2 GlobalState::root_location(EntityId id) const {
+  const Entity* e = &entity(id);
+  Pose2 x = e->location;
+  std::size_t depth = 0;
+  while (e->parent) {
+    e = &entity(*e->parent);
+    x = compose(e->location, x);
+    if (++depth > entities_.size()) {
+      throw std::invalid_argument("GlobalState::root_location: parent cycle through " + id_text(id));
+    }
+  }
+  return x;
+}
+
+std::vector<spmap::ChainLink> GlobalState::chain_from_root(EntityId id) const {
+  std::vector<spmap::ChainLink> reversed;
+  std::optional<EntityId> current = id;
+  while (current) {
+    const Entity& e = entity(*current);
+    reversed.push_back({e.location, e.kind, false, e.id});
+    if (reversed.size() > entities_.size()) {
+      throw std::invalid_argument("GlobalState::chain_from_root: parent cycle through " + id_text(id));
+    }
+    current = e.parent;
+  }
+  return {reversed.rbegin(), reversed.rend()};
+}
+
+std::vector<spmap::ChainLink> GlobalState::chain_between(EntityId a, EntityId b) const {
+  // ⊖(x_1 ⊕ ... ⊕ x_k) = ⊖x_k ⊕ ... ⊕ ⊖x_1.
+  const std::vector<spmap::ChainLink> chain_a = chain_from_root(a);
+  std::vector<spmap::ChainLink> links(chain_a.rbegin(), chain_a.rend());
+  for (spmap::ChainLink& link : links) link.inverted = !link.inverted;
+  const std::vector<spmap::ChainLink> chain_b = chain_from_root(b);
+  links.insert(links.end(), chain_b.begin(), chain_b.end());
+  return links;
+}
+
+void GlobalState::replace_perturbation(EntityId target, const std::vector<LinearTerm>& terms) {
+  const Entity& t = entity(target);
+  const Eigen::Index off_t = t.offset;
+  const Eigen::Index d_t = spmap::dof(t.kind);
+  for (const LinearTerm& term : terms) {
+    const Entity& e = entity(term.entity);
+    if (term.J.rows() != d_t || term.J.cols() != spmap::dof(e.kind)) {
+      throw std::invalid_argument("GlobalState::replace_perturbation: J for " + id_text(term.entity) + " is " +
+                                  std::to_string(term.J.rows()) + "x" + std::to_string(term.J.cols()) +
+                                  ", expected " + std::to_string(d_t) + "x" + std::to_string(spmap::dof(e.kind)));
+    }
+  }
+  // P' = A P Aᵀ, A = I except A(t, :) = Σ J_i at e_i's columns: only t's row
+  // changes, G = Σ J_i P(e_i, :), and P'(t, t) = Σ_j G(:, e_j) J_jᵀ, all from the old P.
+  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(d_t, n_);
+  for (const LinearTerm& term : terms) G.noalias() += term.J * columns(term.entity).transpose();
+  Eigen::MatrixXd G_tt = Eigen::MatrixXd::Zero(d_t, d_t);
+  for (const LinearTerm& term : terms) {
+    G_tt.noalias() += G.middleCols(entity(term.entity).offset, term.J.cols()) * term.J.transpose();
+  }
+  storage_.block(off_t, 0, d_t, off_t) = G.leftCols(off_t);
+  const Eigen::Index below = n_ - off_t - d_t;
+  storage_.block(off_t + d_t, off_t, below, d_t) = G.rightCols(below).transpose();
+  storage_.block(off_t, off_t, d_t, d_t) = 0.5 * (G_tt + G_tt.transpose());
+}
+
+void GlobalState::validate_measurement(const spmap::ImplicitMeasurement& m, const char* where) const {
+  const Eigen::Index r = m.h.size();
+  if (m.R.rows() != r || m.R.cols() != r || !m.h.allFinite() || !m.R.allFinite()) {
+    throw std::invalid_argument(std::string(where) + ": measurement h/R sizes or values are invalid");
+  }
+  for (const spmap::JacobianBlock& b : m.blocks) {
+    const Entity& e = entity(b.entity);
+    if (b.J.rows() != r || b.J.cols() != spmap::dof(e.kind) || !b.J.allFinite()) {
+      throw std::invalid_argument(std::string(where) + ": Jacobian block of " + id_text(b.entity) +
+                                  " has the wrong size or is not finite");
+    }
+  }
+}
+
+Eigen::MatrixXd GlobalState::gather_PHt(const std::vector<spmap::ImplicitMeasurement>& measurements) const {
+  Eigen::Index m_total = 0;
+  for (const spmap::ImplicitMeasurement& m : measurements) m_total += m.h.size();
+  Eigen::MatrixXd PHt = Eigen::MatrixXd::Zero(n_, m_total);
+  Eigen::Index col = 0;
+  for (const spmap::ImplicitMeasurement& m : measurements) {
+    validate_measurement(m, "GlobalState::gather_PHt");
+    const Eigen::Index r = m.h.size();
+    // DESIGN §5.3: P Hᵀ is a gather over the few entities H touches, read from
+    // the lower triangle (rows left of the diagonal, columns below it).
+    for (const spmap::JacobianBlock& b : m.blocks) {
+      const Entity& e = entity(b.entity);
+      const Eigen::Index off = e.offset;
+      const Eigen::Index d = b.J.cols();
+      auto out = PHt.middleCols(col, r);
+      out.topRows(off).noalias() += (b.J * storage_.block(off, 0, d, off)).transpose();
+      out.middleRows(off, d).noalias() +=
+          symmetric_from_lower(storage_.block(off, off, d, d)) * b.J.transpose();
+      out.bottomRows(n_ - off - d).noalias() += storage_.block(off + d, off, n_ - off - d, d) * b.J.transpose();
+    }
+    col += r;
+  }
+  return PHt;
+}
+
+Eigen::MatrixXd GlobalState::innovation_covariance(
+    const std::vector<spmap::ImplicitMeasurement>& measurements) const {
+  // Union of touched entities, then S = H M Hᵀ + R with M their marginal.
+  std::vector<EntityId> touched;
+  std::unordered_map<EntityId, Eigen::Index> column_of;
+  Eigen::Index t = 0;
+  Eigen::Index m_total = 0;
+  for (const spmap::ImplicitMeasurement& m : measurements) {
+    validate_measurement(m, "GlobalState::innovation_covariance");
+    m_total += m.h.size();
+    for (const spmap::JacobianBlock& b : m.blocks) {
+      if (column_of.emplace(b.entity, t).second) {
+        touched.push_back(b.entity);
+        t += b.J.cols();
+      }
+    }
+  }
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(m_total, t);
+  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(m_total, m_total);
+  Eigen::Index row = 0;
+  for (const spmap::ImplicitMeasurement& m : measurements) {
+    const Eigen::Index r = m.h.size();
+    for (const spmap::JacobianBlock& b : m.blocks) {
+      H.block(row, column_of.at(b.entity), r, b.J.cols()) += b.J;
+    }
+    R.block(row, row, r, r) = m.R;
+    row += r;
+  }
+  const Eigen::MatrixXd M = marginal(touched);
+  Eigen::MatrixXd S = H * M * H.transpose() + R;
+  return 0.5 * (S + S.transpose());
+}
+
+double GlobalState::reference_scale(const std::vector<spmap::ImplicitMeasurement>& measurements) const {
+  double scale = 0.0;
+  for (const spmap::ImplicitMeasurement& m : measurements) {
+    Eigen::VectorXd diag = m.R.diagonal();
+    for (const spmap::JacobianBlock& b : m.blocks) {
+      const Eigen::MatrixXd JP = b.J * block(b.entity, b.entity);
+      diag += JP.cwiseProduct(b.J).rowwise().sum();
+    }
+    if (diag.size() > 0) scale = std::max(scale, diag.maxCoeff());
+  }
+  return scale;
+}
+
+StateUpdateReport GlobalState::ekf_update(const std::vector<spmap::ImplicitMeasurement>& measurements,
+                                          double relative_tolerance, double absolute_floor) {
+  StateUpdateReport report;
+  for (const spmap::ImplicitMeasurement& m : measurements) {
+    for (const spmap::JacobianBlock& b : m.blocks) {
+      if (std::find(report.touched.begin(), report.touched.end(), b.entity) == report.touched.end()) {
+        report.touched.push_back(b.entity);
+      }
+    }
+  }
+  const Eigen::MatrixXd PHt = gather_PHt(measurements);
+  const Eigen::Index m_total = PHt.cols();
+  report.rows = static_cast<int>(m_total);
+  if (m_total == 0) return report;
+
+  // S = H (P Hᵀ) + R, from the rows of P Hᵀ at the touched entities.
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(m_total, m_total);
+  Eigen::VectorXd h(m_total);
+  Eigen::Index row = 0;
+  for (const spmap::ImplicitMeasurement& m : measurements) {
+    const Eigen::Index r = m.h.size();
+    for (const spmap::JacobianBlock& b : m.blocks) {
+      S.middleRows(row, r).noalias() += b.J * PHt.middleRows(entity(b.entity).offset, b.J.cols());
+    }
+    S.block(row, row, r, r) += m.R;
+    h.segment(row, r) = m.h;
+    row += r;
+  }
+  S = (0.5 * (S + S.transpose())).eval();
+
+  // DESIGN §6: full-pivot Gauss–Jordan; drop the rows whose pivots fall below
+  // the threshold (relative to the scale of S, never below the absolute floor).
+  const double scale = std::max(reference_scale(measurements), absolute_floor / relative_tolerance);
+  const spmap::CarefulInverse ci = spmap::careful_inverse(S, relative_tolerance, scale);
+  report.rows_dropped = static_cast<int>(ci.dropped.size());
+  const auto k = static_cast<Eigen::Index>(ci.kept.size());
+  report.rows_kept = static_cast<int>(k);
+  if (k == 0) return report;
+
+  Eigen::MatrixXd PHt_k(n_, k);
+  Eigen::MatrixXd S_k(k, k);
+  Eigen::VectorXd h_k(k);
+  for (Eigen::Index a = 0; a < k; ++a) {
+    const Eigen::Index ra = ci.kept[static_cast<std::size_t>(a)];
+    PHt_k.col(a) = PHt.col(ra);
+    h_k(a) = h(ra);
+    for (Eigen::Index b = 0; b < k; ++b) S_k(a, b) = S(ra, ci.kept[static_cast<std::size_t>(b)]);
+  }
+  const Eigen::VectorXd Sinv_h = ci.inverse * h_k;
+  report.distance2 = h_k.dot(Sinv_h);
+
+  // Eq. (9): p̂ = −W ĥ with W = P Hᵀ S⁻¹ (the measurement predicts ĥ, observes 0).
+  const Eigen::VectorXd p_hat = -(PHt_k * Sinv_h);
+
+  // P ← P − P Hᵀ S⁻¹ H P = P − U Uᵀ, U = P Hᵀ L⁻ᵀ with S_k = L Lᵀ: one
+  // symmetric rank-k update of the lower triangle (DESIGN §5.3).
+  Eigen::MatrixXd U;
+  const Eigen::LLT<Eigen::MatrixXd> llt(S_k);
+  if (llt.info() == Eigen::Success) {
+    U = llt.matrixL().solve(PHt_k.transpose()).transpose();
+  } else {
+    // The kept pivots are well above the threshold, so this is rounding only:
+    // factor the careful inverse itself, negative rounding clipped.
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(ci.inverse);
+    const Eigen::VectorXd root = es.eigenvalues().cwiseMax(0.0).cwiseSqrt();
+    U = PHt_k * es.eigenvectors() * root.asDiagonal();
+  }
+  storage_.topLeftCorner(n_, n_).selfadjointView<Eigen::Lower>().rankUpdate(U, -1.0);
+
+  // Fold p̂ into every location and reset it to 0 (DESIGN §3).
+  assert(p_hat.allFinite());
+  for (Entity& e : entities_) {
+    const Eigen::Index d = spmap::dof(e.kind);
+    const Eigen::VectorXd p_E = p_hat.segment(e.offset, d);
+    if (p_E.isZero(0.0)) continue;
+    e.location = spmap::fold(e.location, e.kind, p_E);
+  }
+  return report;
+}
+
+}  // namespace lmf::fusion
