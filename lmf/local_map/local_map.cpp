@@ -8,6 +8,8 @@
 #include <string>
 #include <utility>
 
+#include <Eigen/LU>
+
 #include "lmf/local_map/local_map_measurements.hpp"
 #include "lmf/scan/segment_extraction.hpp"
 #include "lmf/spmap/segment_ops.hpp"
@@ -35,6 +37,7 @@ bool usable(const ObservedSegment& e) {
 
 LocalMap::LocalMap(const LocalMapConfig& config, int robot_id) : config_(config), robot_id_(robot_id) {
   config_.validate();
+  pairing_threshold_ = spmap::chi2_threshold(2, config_.pairing_alpha);
   robot_ = map_.add(EntityKind::kRobot, Pose2());
 }
 
@@ -128,7 +131,11 @@ ScanReport LocalMap::update(int64_t utime, const Pose2& odometry, const std::vec
   scan_poses_.push_back({utime, x_LR()});
   report.map_segments = static_cast<int>(num_segments());
   report.x_LR = x_LR();
-  report.covariance_health = spmap::check_covariance(map_.covariance(), config_.covariance_tolerance);
+  ++scans_;
+  if (config_.covariance_check_interval > 0 && scans_ % config_.covariance_check_interval == 0) {
+    report.covariance_checked = true;
+    report.covariance_health = check_covariance();
+  }
   report.should_ship = should_ship();  // step 10: the caller ships and resets
   return report;
 }
@@ -149,15 +156,41 @@ std::vector<LocalMap::Candidate> LocalMap::pair_observations(const std::vector<O
   std::vector<Pose2> x_LE(observations.size());
   for (std::size_t i = 0; i < observations.size(); ++i) x_LE[i] = compose(x_LR_hat, observations[i].location);
 
+  // Most (observation, segment) combinations are far from compatible. The same
+  // test is first evaluated in fixed-size form from the five entity blocks of P
+  // (pairing_jacobians; S = H P Hᵀ + R with the spmap reference scale): when both
+  // rows would certainly survive the careful inversion and d² is clearly above
+  // the threshold, the pairing is rejected here, with the decision the full
+  // spmap::individual_compatibility would take. Everything else goes through it.
+  const Eigen::MatrixXd& P = map_.covariance();
+  const Eigen::Index ro = map_.entity(robot_).offset;
+  const Eigen::Matrix3d P_RR = P.block<3, 3>(ro, ro);
+  const double tolerance = config_.careful_inverse_tolerance;
   for (const spmap::Entity& s : map_.entities()) {
     if (s.kind != EntityKind::kSegment) continue;
     const Pose2 x_SL = inverse(s.location);
+    const Eigen::Matrix2d P_SS = P.block<2, 2>(s.offset, s.offset);
+    const Eigen::Matrix<double, 2, 3> P_SR = P.block<2, 3>(s.offset, ro);
     for (std::size_t i = 0; i < observations.size(); ++i) {
       ++report.pairings_tried;
       // Overlap of the extents first: it is cheap and both tests must pass.
       const Pose2 x_SE = compose(x_SL, x_LE[i]);
       if (spmap::extent_overlap(x_SE, s.length_m, observations[i].length_m) <= -config_.overlap_gap_tolerance_m) {
         ++report.pairings_rejected_overlap;
+        continue;
+      }
+      const local_map::PairingJacobians pj =
+          local_map::pairing_jacobians(s.location, x_LR_hat, observations[i].location);
+      const Eigen::Matrix2d R = pj.J_E * observations[i].covariance * pj.J_E.transpose();
+      const Eigen::Matrix2d uncorrelated = pj.H_S * P_SS * pj.H_S.transpose() + pj.H_R * P_RR * pj.H_R.transpose() + R;
+      const Eigen::Matrix2d cross = pj.H_S * P_SR * pj.H_R.transpose();
+      const Eigen::Matrix2d S = uncorrelated + cross + cross.transpose();
+      const double scale = std::max({std::abs(S(0, 0)), std::abs(S(1, 1)), uncorrelated.diagonal().maxCoeff()});
+      const double first_pivot = std::max(S(0, 0), S(1, 1));
+      const double second_pivot = first_pivot > 0.0 ? S.determinant() / first_pivot : 0.0;
+      if (second_pivot > 1e3 * tolerance * scale &&
+          pj.h.dot(S.inverse() * pj.h) > pairing_threshold_ * (1.0 + 1e-6)) {
+        ++report.pairings_rejected_individual;
         continue;
       }
       // Individual compatibility, chi2(2) (paper eq. 8; DESIGN §4.3).
@@ -415,6 +448,10 @@ void LocalMap::join_groups(EntityId a, EntityId b) {
   const EntityId ra = group_of(a);
   const EntityId rb = group_of(b);
   if (ra != rb) group_parent_[std::max(ra, rb)] = std::min(ra, rb);
+}
+
+spmap::CovarianceHealth LocalMap::check_covariance() const {
+  return spmap::check_covariance(map_.covariance(), config_.covariance_tolerance);
 }
 
 // ---------------------------------------------------------------------------

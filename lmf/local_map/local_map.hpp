@@ -70,6 +70,7 @@ struct ScanReport {
 
   int map_segments = 0;  // after the scan
   Pose2 x_LR;            // robot pose estimate after the scan
+  bool covariance_checked = false;  // covariance_health is filled (LocalMapConfig::covariance_check_interval)
   spmap::CovarianceHealth covariance_health;
   bool should_ship = false;
 };
@@ -105,6 +106,9 @@ class LocalMap {
   // segments, seq + 1, first_utime = the last scan's time. The odometry reference
   // is kept, so the next prediction uses the motion since the last scan.
   void reset();
+
+  // Symmetry and positive semidefiniteness of P (LocalMapConfig::covariance_tolerance).
+  spmap::CovarianceHealth check_covariance() const;
 
   const LocalMapConfig& config() const { return config_; }
   int robot_id() const { return robot_id_; }
@@ -152,6 +156,7 @@ class LocalMap {
   void join_groups(spmap::EntityId a, spmap::EntityId b);
 
   LocalMapConfig config_;
+  double pairing_threshold_ = 0.0;  // chi2inv(1 - pairing_alpha, 2)
   int robot_id_;
   int64_t seq_ = 0;
   spmap::StochasticMap map_;
@@ -160,6 +165,7 @@ class LocalMap {
   std::optional<int64_t> first_utime_;
   int64_t last_utime_ = 0;
   double span_m_ = 0.0;
+  std::size_t scans_ = 0;  // scans folded in since construction
   std::vector<ScanPose> scan_poses_;
   std::unordered_map<spmap::EntityId, spmap::EntityId> group_parent_;
 };

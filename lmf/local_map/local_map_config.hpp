@@ -76,9 +76,14 @@ struct LocalMapConfig {
   double ship_distance_m = 10.0;   // should_ship() when span > this (m, > 0)
   std::size_t max_segments = 100;  // ... or when the map holds more segments than this (> 0)
 
-  // --- Covariance supervision after every scan: symmetric and PSD within this
-  // tolerance (relative to max(1, max |P_ii|)).
+  // --- Covariance supervision: symmetric and PSD within this tolerance
+  // (relative to max(1, max |P_ii|)), checked after every
+  // `covariance_check_interval` scans (1: every scan; 0: never inside update(),
+  // only through LocalMap::check_covariance()). The check is an eigenvalue
+  // decomposition of P, O(n³): with 170 segments it costs more than the rest of
+  // the scan update.
   double covariance_tolerance = 1e-9;
+  std::size_t covariance_check_interval = 1;
 
   // Segment extraction used by LocalMap::process_scan (step 2).
   ExtractionConfig extraction;

@@ -27,6 +27,7 @@ void read_local_map_config(io::JsonReader& reader, LocalMapConfig& config) {
   reader.read("ship_distance_m", config.ship_distance_m, io::positive());
   reader.read("max_segments", config.max_segments, io::positive());
   reader.read("covariance_tolerance", config.covariance_tolerance, io::non_negative());
+  reader.read("covariance_check_interval", config.covariance_check_interval);
   if (io::JsonReader* extraction = reader.optional_section("extraction")) {
     read_extraction_config(*extraction, config.extraction);
   }

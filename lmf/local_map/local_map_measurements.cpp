@@ -70,6 +70,28 @@ spmap::ImplicitMeasurement pairing_measurement(const spmap::StochasticMap& map, 
   return spmap::measurement_from_chain(links, {1, 2}, noise);
 }
 
+PairingJacobians pairing_jacobians(const Pose2& x_LS, const Pose2& x_LR, const Pose2& x_RE) {
+  // value = a ⊕ b ⊕ c with a = ⊖(x_LS ⊕ B_Sᵀp_S), b = x_LR ⊕ p_R, c = x_RE ⊕ B_Eᵀp_E.
+  const Pose2 a = inverse(x_LS);
+  const Pose2 bc = compose(x_LR, x_RE);
+  const Pose2 ab = compose(a, x_LR);
+  const Pose2 value = compose(a, bc);
+  const Pose2 zero;
+  Eigen::Matrix<double, 3, 2> Bt = Eigen::Matrix<double, 3, 2>::Zero();  // B_segmentᵀ
+  Bt(1, 0) = 1.0;
+  Bt(2, 1) = 1.0;
+  const Eigen::Matrix<double, 3, 2> J_S =
+      J1compose(a, bc) * Jinverse(x_LS) * J2compose(x_LS, zero) * Bt;
+  const Eigen::Matrix3d J_R = J2compose(a, bc) * J1compose(x_LR, x_RE) * J2compose(x_LR, zero);
+  const Eigen::Matrix<double, 3, 2> J_E = J2compose(ab, x_RE) * J2compose(x_RE, zero) * Bt;
+  PairingJacobians out;
+  out.h = {value.y, value.phi};
+  out.H_S = J_S.bottomRows<2>();
+  out.H_R = J_R.bottomRows<2>();
+  out.J_E = J_E.bottomRows<2>();
+  return out;
+}
+
 Pose2 observation_in_segment(const spmap::StochasticMap& map, spmap::EntityId segment, spmap::EntityId robot,
                              const ObservedSegment& observation) {
   return compose(between(map.root_location(segment), map.root_location(robot)), observation.location);

@@ -39,6 +39,17 @@ Eigen::Matrix3d odometry_noise(const Pose2& u, const LocalMapConfig& config);
 spmap::ImplicitMeasurement pairing_measurement(const spmap::StochasticMap& map, spmap::EntityId segment,
                                                spmap::EntityId robot, const ObservedSegment& observation);
 
+// The same measurement in fixed-size form for the hot pairing loop: value and
+// Jacobians of h = B_S(⊖x_LS ⊕ x_LR ⊕ x_RE) with respect to p_S, p_R and p_E
+// (R = J_E Cov(p_E) J_Eᵀ). Equal to pairing_measurement() (tested).
+struct PairingJacobians {
+  Eigen::Vector2d h;                // (lateral m, angle rad, wrapped)
+  Eigen::Matrix2d H_S;
+  Eigen::Matrix<double, 2, 3> H_R;
+  Eigen::Matrix2d J_E;
+};
+PairingJacobians pairing_jacobians(const Pose2& x_LS, const Pose2& x_LR, const Pose2& x_RE);
+
 // E seen from S at the current estimate: ⊖x̂_LS ⊕ x̂_LR ⊕ x_RE.
 Pose2 observation_in_segment(const spmap::StochasticMap& map, spmap::EntityId segment, spmap::EntityId robot,
                              const ObservedSegment& observation);

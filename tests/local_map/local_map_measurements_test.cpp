@@ -86,6 +86,25 @@ TEST(PairingMeasurement, ValueAndJacobiansMatchFiniteDifferences) {
   }
 }
 
+TEST(PairingMeasurement, FixedSizeFormEqualsTheChainForm) {
+  for (const Case& c : cases()) {
+    spmap::StochasticMap map;
+    const EntityId robot = map.add(EntityKind::kRobot, c.x_LR);
+    const EntityId segment = map.add(EntityKind::kSegment, c.x_LS, std::nullopt, 2.0);
+    ObservedSegment e;
+    e.location = c.x_RE;
+    e.length_m = 1.5;
+    e.covariance << 4e-4, 1e-5, 1e-5, 9e-5;
+    const spmap::ImplicitMeasurement m = local_map::pairing_measurement(map, segment, robot, e);
+    const local_map::PairingJacobians pj = local_map::pairing_jacobians(c.x_LS, c.x_LR, c.x_RE);
+    EXPECT_TRUE(matrices_near(pj.h, m.h, 1e-12));
+    for (const spmap::JacobianBlock& b : m.blocks) {
+      EXPECT_TRUE(matrices_near(b.entity == segment ? Eigen::MatrixXd(pj.H_S) : Eigen::MatrixXd(pj.H_R), b.J, 1e-12));
+    }
+    EXPECT_TRUE(matrices_near(pj.J_E * e.covariance * pj.J_E.transpose(), m.R, 1e-15));
+  }
+}
+
 TEST(PairingMeasurement, RejectsWrongEntityKinds) {
   spmap::StochasticMap map;
   const EntityId robot = map.add(EntityKind::kRobot, Pose2());

@@ -376,6 +376,20 @@ TEST(LocalMapSnapshot, SnapshotAndResetRoundTrip) {
   EXPECT_GT(lm.robot_covariance().trace(), 0.0);
 }
 
+TEST(LocalMapSupervision, CovarianceIsCheckedAtTheConfiguredInterval) {
+  LocalMapConfig config;
+  config.covariance_check_interval = 2;
+  LocalMap lm(config);
+  const ScanReport r1 = lm.update(0, Pose2(), {observe_wall(Pose2(), {-1.0, 2.0}, {3.0, 2.0})});
+  EXPECT_FALSE(r1.covariance_checked);
+  const ScanReport r2 = lm.update(kScanPeriodUs, Pose2(0.5, 0.0, 0.0), {});
+  EXPECT_TRUE(r2.covariance_checked);
+  EXPECT_TRUE(r2.covariance_health.ok());
+  EXPECT_TRUE(r2.covariance_health.symmetric);
+  EXPECT_TRUE(lm.check_covariance().ok());
+  EXPECT_TRUE(LocalMap().update(0, Pose2(), {}).covariance_checked);  // default: every scan
+}
+
 TEST(LocalMapInput, MalformedObservationsAreSkippedAndBadOdometryThrows) {
   LocalMap lm;
   ObservedSegment nan_location = observe_wall(Pose2(), {-1.0, 2.0}, {3.0, 2.0});
