@@ -1,0 +1,322 @@
+#include "robot_agent/agent_node.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <stdexcept>
+#include <utility>
+
+#include "lmf/mission/offline_mission.hpp"
+#include "runtime/convert.hpp"
+
+namespace lmf::robot_agent {
+
+namespace rt = lmf::runtime;
+using std::to_string;
+
+namespace {
+
+std::int64_t now_utime() {
+  // Status and ack messages carry the sender's time; the core never sees it.
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+}  // namespace
+
+void AgentOptions::validate() const {
+  if (robot_id < 0) throw std::invalid_argument("robot id must be >= 0, got " + to_string(robot_id));
+  local_map.validate();
+  if (resend_interval.count() <= 0) throw std::invalid_argument("resend interval must be > 0 ms");
+  if (status_interval.count() <= 0) throw std::invalid_argument("status interval must be > 0 ms");
+  if (max_seq_gap <= 0) throw std::invalid_argument("max_seq_gap must be > 0");
+  if (!(drop_local_maps >= 0.0 && drop_local_maps < 1.0)) {
+    throw std::invalid_argument("drop fraction must be in [0, 1), got " + to_string(drop_local_maps));
+  }
+}
+
+AgentNode::AgentNode(rt::Bus& bus, rt::EventLoop& loop, AgentOptions options)
+    : bus_(bus),
+      loop_(loop),
+      options_((options.validate(), std::move(options))),
+      local_map_(options_.local_map, options_.robot_id),
+      drop_random_(options_.drop_seed) {
+  const rt::Channels& ch = options_.channels;
+  subscriptions_.push_back(bus_.subscribe(ch.scan(options_.robot_id), [this](const std::string& c, const void* d,
+                                                                             std::size_t n) { on_scan(c, d, n); }));
+  subscriptions_.push_back(bus_.subscribe(
+      ch.local_map_ack(), [this](const std::string& c, const void* d, std::size_t n) { on_local_map_ack(c, d, n); }));
+  subscriptions_.push_back(bus_.subscribe(ch.corrected_frames(), [this](const std::string& c, const void* d,
+                                                                        std::size_t n) { on_corrected_frames(c, d, n); }));
+  subscriptions_.push_back(bus_.subscribe(
+      ch.mission_end(), [this](const std::string& c, const void* d, std::size_t n) { on_mission_end(c, d, n); }));
+  // Checked a few times per interval so a map is resent within ~1.25 intervals of its last send.
+  const auto tick = std::max(std::chrono::milliseconds(5), options_.resend_interval / 4);
+  timers_.push_back(loop_.every(tick, [this] { resend_due(); }));
+  timers_.push_back(loop_.every(options_.status_interval, [this] { publish_status(); }));
+}
+
+AgentNode::~AgentNode() {
+  for (const int id : timers_) loop_.cancel(id);
+  for (const int id : subscriptions_) bus_.unsubscribe(id);
+}
+
+void AgentNode::reject(rt::RejectReason reason, std::string detail, std::string_view source) {
+  rejects_.record(rt::Rejection{reason, std::move(detail)}, source);
+}
+
+// ---- scans ----------------------------------------------------------------------------
+
+void AgentNode::on_scan(const std::string& channel, const void* data, std::size_t size) {
+  auto scan = rt::decode<rt::RobotScan>(data, size);
+  if (!scan) {
+    rejects_.record(scan.rejection(), channel);
+    return;
+  }
+  const rt::RobotScan& s = scan.value();
+  if (s.robot_id != options_.robot_id) {
+    reject(rt::RejectReason::kUnknownRobot, "scan of robot " + to_string(s.robot_id) + " on my channel", channel);
+    return;
+  }
+  if (s.seq < next_scan_seq_) {
+    if (last_ack_ && s.seq == last_ack_->seq) {
+      ++counters_.scans_duplicate;  // a lockstep resend: our ack was lost or late
+      send_ack(*last_ack_);
+      return;
+    }
+    reject(rt::RejectReason::kStaleSequence,
+           "scan seq " + to_string(s.seq) + " after " + to_string(next_scan_seq_ - 1) + " was processed", channel);
+    return;
+  }
+  if (s.seq - next_scan_seq_ > options_.max_seq_gap) {
+    reject(rt::RejectReason::kOutOfRange,
+           "scan seq " + to_string(s.seq) + " is more than " + to_string(options_.max_seq_gap) + " ahead of " +
+               to_string(next_scan_seq_),
+           channel);
+    return;
+  }
+  if (last_scan_utime_ && s.scan.utime < *last_scan_utime_) {
+    reject(rt::RejectReason::kOutOfRange,
+           "scan seq " + to_string(s.seq) + " at " + to_string(s.scan.utime) + " us is older than the last one (" +
+               to_string(*last_scan_utime_) + " us)",
+           channel);
+    return;
+  }
+  process(s);
+}
+
+void AgentNode::process(const rt::RobotScan& scan) {
+  ScanReport report;
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    report = local_map_.process_scan(scan.scan);
+  } catch (const std::invalid_argument& e) {
+    // LocalMap leaves its state unchanged; the converter already refused what
+    // it knows, so this is a scan the core found unusable.
+    ++counters_.scan_errors;
+    reject(rt::RejectReason::kOutOfRange, std::string("local map refused the scan: ") + e.what(),
+           options_.channels.scan(options_.robot_id));
+    return;
+  }
+  const double elapsed_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  window_scan_times_ms_.push_back(elapsed_ms);
+  all_scan_times_ms_.push_back(elapsed_ms);
+  counters_.scans_missed += scan.seq - next_scan_seq_;
+  next_scan_seq_ = scan.seq + 1;
+  last_scan_utime_ = scan.scan.utime;
+  map_has_scans_ = true;
+  ++counters_.scans_processed;
+  if (!report.covariance_health.ok()) {
+    window_covariance_ok_ = false;
+    if (counters_.covariance_always_ok) {
+      std::cerr << "lmf-agent " << options_.robot_id << ": local map covariance check failed at scan " << scan.seq
+                << ": " << report.covariance_health.describe() << "\n";
+    }
+    counters_.covariance_always_ok = false;
+  }
+
+  // The protocol: the map a scan made ship goes out before that scan's ack.
+  if (report.should_ship) ship();
+
+  rt::ScanAck ack;
+  ack.utime = scan.scan.utime;
+  ack.robot_id = options_.robot_id;
+  ack.seq = scan.seq;
+  ack.local_map_seq = local_map_.seq();
+  ack.x_LR = local_map_.x_LR();
+  ack.covariance = local_map_.robot_covariance();
+  last_ack_ = ack;
+  send_ack(ack);
+}
+
+void AgentNode::send_ack(const rt::ScanAck& ack) {
+  auto msg = rt::to_message(ack);
+  if (!msg) {
+    ++counters_.ack_failures;
+    std::cerr << "lmf-agent " << options_.robot_id << ": cannot acknowledge scan " << ack.seq << ": "
+              << msg.rejection().describe() << "\n";
+    return;
+  }
+  bus_.publish(options_.channels.scan_ack(), msg.value());
+}
+
+// ---- local maps -------------------------------------------------------------------------
+
+void AgentNode::ship() {
+  LocalMapSnapshot snapshot = local_map_.snapshot();
+  local_map_.reset();
+  map_has_scans_ = false;
+  ++counters_.maps_shipped;
+  shipped_final_x_LR_[snapshot.seq] = snapshot.x_LR;
+  auto msg = rt::to_message(snapshot);
+  if (!msg) {
+    // An indefinite covariance must not leave (DESIGN §8); the map is lost
+    // and the server will see a gap in this robot's seq numbers.
+    ++counters_.ship_failures;
+    std::cerr << "lmf-agent " << options_.robot_id << ": local map " << snapshot.seq
+              << " not shipped: " << msg.rejection().describe() << "\n";
+    return;
+  }
+  PendingMap& pending = pending_[snapshot.seq];
+  pending.bytes = rt::encode_message(msg.value());
+  transmit(snapshot.seq, pending);
+}
+
+void AgentNode::transmit(std::int64_t seq, PendingMap& map) {
+  (void)seq;
+  map.last_sent = std::chrono::steady_clock::now();
+  ++counters_.map_transmissions;
+  if (options_.drop_local_maps > 0.0 &&
+      std::uniform_real_distribution<double>(0.0, 1.0)(drop_random_) < options_.drop_local_maps) {
+    ++counters_.map_transmissions_dropped;
+    return;
+  }
+  bus_.publish_raw(options_.channels.local_map(), map.bytes);
+}
+
+void AgentNode::resend_due() {
+  const auto now = std::chrono::steady_clock::now();
+  for (auto& [seq, map] : pending_) {
+    if (now - map.last_sent >= options_.resend_interval) {
+      ++counters_.map_resends;
+      transmit(seq, map);
+    }
+  }
+}
+
+std::vector<std::int64_t> AgentNode::unacknowledged_maps() const {
+  std::vector<std::int64_t> out;
+  for (const auto& entry : pending_) out.push_back(entry.first);
+  return out;
+}
+
+void AgentNode::on_local_map_ack(const std::string& channel, const void* data, std::size_t size) {
+  auto ack = rt::decode<rt::LocalMapAck>(data, size);
+  if (!ack) {
+    rejects_.record(ack.rejection(), channel);
+    return;
+  }
+  const rt::LocalMapAck& a = ack.value();
+  if (a.robot_id != options_.robot_id) return;  // another agent's
+  const auto it = pending_.find(a.seq);
+  if (it == pending_.end()) {
+    if (a.seq >= local_map_.seq()) {
+      reject(rt::RejectReason::kOutOfRange, "ack of local map " + to_string(a.seq) + " never shipped", channel);
+    }
+    return;  // an ack of a map acked before (a resend crossed the first ack): nothing to do
+  }
+  pending_.erase(it);
+  ++counters_.maps_acknowledged;
+  if (a.status == rt::LocalMapAck::Status::kQueued) ++counters_.maps_queued;
+}
+
+// ---- corrected frames ----------------------------------------------------------------------
+
+void AgentNode::on_corrected_frames(const std::string& channel, const void* data, std::size_t size) {
+  auto frames = rt::decode<rt::CorrectedFrames>(data, size);
+  if (!frames) {
+    rejects_.record(frames.rejection(), channel);
+    return;
+  }
+  for (const rt::CorrectedFrame& f : frames.value().frames) {
+    if (f.robot_id != options_.robot_id) continue;
+    const std::int64_t map_seq = f.last_applied_seq + 1;  // x_WL is the origin of this map
+    if (map_seq > local_map_.seq()) {
+      reject(rt::RejectReason::kOutOfRange,
+             "corrected frame for local map " + to_string(map_seq) + " but map " + to_string(local_map_.seq()) +
+                 " is in progress",
+             channel);
+      return;
+    }
+    // Frames only move forward: an older fusion's message (reordered or late) is ignored.
+    if (frame_ && (map_seq < frame_->map_seq ||
+                   (map_seq == frame_->map_seq && frames.value().fusion_count < frame_->fusion_count))) {
+      return;
+    }
+    frame_ = Frame{map_seq, frames.value().fusion_count, f.x_WL};
+    ++counters_.corrected_frames;
+    // Final poses of maps the server has fused are no longer needed for chaining.
+    shipped_final_x_LR_.erase(shipped_final_x_LR_.begin(), shipped_final_x_LR_.lower_bound(map_seq));
+    return;
+  }
+}
+
+std::optional<Pose2> AgentNode::global_pose() const {
+  if (!frame_) return std::nullopt;
+  Pose2 x_WL = frame_->x_WL;
+  // The server may be behind: L(k+1) = L(k) ⊕ x_LR(k) for the maps shipped since.
+  for (std::int64_t k = frame_->map_seq; k < local_map_.seq(); ++k) {
+    const auto it = shipped_final_x_LR_.find(k);
+    if (it == shipped_final_x_LR_.end()) return std::nullopt;
+    x_WL = compose(x_WL, it->second);
+  }
+  return compose(x_WL, local_map_.x_LR());
+}
+
+// ---- mission end ----------------------------------------------------------------------------
+
+void AgentNode::on_mission_end(const std::string& channel, const void* data, std::size_t size) {
+  auto end = rt::decode<rt::MissionEnd>(data, size);
+  if (!end) {
+    rejects_.record(end.rejection(), channel);
+    return;
+  }
+  const auto& ids = end.value().robot_ids;
+  if (mission_ended_ || std::find(ids.begin(), ids.end(), options_.robot_id) == ids.end()) return;
+  mission_ended_ = true;
+  if (map_has_scans_) ship();  // so every scan belongs to a fused local map
+}
+
+// ---- status -----------------------------------------------------------------------------------
+
+void AgentNode::publish_status() {
+  const mission::TimingStats timing = mission::timing_stats(window_scan_times_ms_);
+  lmf::agent_status_t msg{};
+  msg.utime = now_utime();
+  msg.robot_id = options_.robot_id;
+  msg.joined = frame_.has_value();
+  msg.scans = counters_.scans_processed;
+  msg.local_map_segments = static_cast<std::int32_t>(local_map_.num_segments());
+  msg.maps_shipped = counters_.maps_shipped;
+  msg.maps_acknowledged = counters_.maps_acknowledged;
+  msg.scan_time_p50_ms = static_cast<float>(timing.p50_ms);
+  msg.scan_time_p99_ms = static_cast<float>(timing.p99_ms);
+  msg.scan_time_max_ms = static_cast<float>(timing.max_ms);
+  msg.window_scans = static_cast<std::int32_t>(timing.count);
+  msg.covariance_ok = window_covariance_ok_;
+  const std::optional<Pose2> pose = global_pose();
+  msg.global_pose = rt::to_message(pose.value_or(Pose2()));
+  msg.mission_done = mission_done();
+  for (const auto& [reason, count] : rejects_.nonzero()) {
+    msg.reject_reasons.push_back(reason);
+    msg.reject_counts.push_back(count);
+  }
+  msg.num_reject_reasons = static_cast<std::int32_t>(msg.reject_reasons.size());
+  bus_.publish(options_.channels.agent_status(), msg);
+  window_scan_times_ms_.clear();
+  window_covariance_ok_ = true;
+}
+
+}  // namespace lmf::robot_agent

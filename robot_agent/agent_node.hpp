@@ -1,0 +1,159 @@
+// The robot agent (DESIGN §1, §4, §7): LCM <-> one robot's LocalMap.
+//
+//   LMF_SCAN_<id>        in   every scan goes through LocalMap::process_scan
+//                             (timed with steady_clock); when the map should
+//                             ship: snapshot, reset, publish local_map_t
+//   LMF_SCAN_ACK         out  after every processed scan (and after the map it
+//                             shipped, if any), with the state after the scan
+//   LMF_LOCAL_MAP        out  each shipped map, resent every resend_interval
+//                             until the server acknowledges it
+//   LMF_LOCAL_MAP_ACK    in   FUSED / DUPLICATE / QUEUED: stop resending
+//   LMF_CORRECTED_FRAMES in   x_WL of this robot: global pose = x_WL ⊕ x_LR
+//   LMF_MISSION_END      in   ship the unfinished map, resend until acked
+//   LMF_AGENT_STATUS     out  every status_interval
+//
+// Scan sequence numbers: the next expected seq is processed; the last
+// processed one again is a duplicate (a lockstep resend): re-acked with the
+// same answer, not reprocessed; older ones are stale_sequence. A later seq
+// (scans lost on the network, --rate replay) is processed and the gap counted,
+// unless it is more than max_seq_gap ahead (out_of_range: a forged or foreign
+// number). A scan older in time than the last one processed is out_of_range.
+// Every refusal is counted by reason (rejects()) and logged rate-limited;
+// nothing a message holds can stop the agent.
+//
+// Corrected frames: x_WL is the origin of local map last_applied_seq + 1. The
+// agent may be ahead (it shipped maps the server has not fused yet); it then
+// chains the final x_LR of the maps in between (kept since shipping).
+//
+// Never blocks: publishing is LCM's non-blocking send, resends and status run
+// on the event loop's timers. Threading: everything runs on the loop's thread.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "lmf/local_map/local_map.hpp"
+#include "runtime/bus.hpp"
+#include "runtime/channels.hpp"
+#include "runtime/event_loop.hpp"
+#include "runtime/messages.hpp"
+#include "runtime/rejection.hpp"
+
+namespace lmf::robot_agent {
+
+struct AgentOptions {
+  int robot_id = 0;
+  LocalMapConfig local_map;
+  runtime::Channels channels;
+  std::chrono::milliseconds resend_interval{1000};  // > 0
+  std::chrono::milliseconds status_interval{200};   // > 0
+  std::int64_t max_seq_gap = 1000;  // a scan further ahead than this is refused (> 0)
+  // Simulated loss (tests): each local-map transmission, first or resend, is
+  // dropped with this probability in [0, 1), from a generator seeded with drop_seed.
+  double drop_local_maps = 0.0;
+  std::uint64_t drop_seed = 1;
+  // Throws std::invalid_argument naming the bad field.
+  void validate() const;
+};
+
+// What the agent has done, for status messages, logs and tests.
+struct AgentCounters {
+  std::int64_t scans_processed = 0;
+  std::int64_t scans_duplicate = 0;  // resent scans re-acked
+  std::int64_t scans_missed = 0;     // seq numbers skipped (lost on the way)
+  std::int64_t maps_shipped = 0;
+  std::int64_t maps_acknowledged = 0;  // distinct maps acked (any status)
+  std::int64_t maps_queued = 0;        // of those, acked QUEUED at first
+  std::int64_t map_transmissions = 0;  // publish attempts, resends included
+  std::int64_t map_transmissions_dropped = 0;  // by the simulated loss
+  std::int64_t map_resends = 0;
+  std::int64_t ship_failures = 0;      // snapshots the converter refused (lost maps)
+  std::int64_t ack_failures = 0;       // scan acks the converter refused
+  std::int64_t scan_errors = 0;        // LocalMap threw on a scan that decoded fine
+  std::int64_t corrected_frames = 0;   // frame updates applied
+  bool covariance_always_ok = true;    // every scan's covariance check passed
+};
+
+class AgentNode {
+ public:
+  // Subscribes and starts the timers. Throws std::invalid_argument for bad
+  // options. The bus and loop must outlive the node.
+  AgentNode(runtime::Bus& bus, runtime::EventLoop& loop, AgentOptions options);
+  ~AgentNode();
+  AgentNode(const AgentNode&) = delete;
+  AgentNode& operator=(const AgentNode&) = delete;
+
+  int robot_id() const { return options_.robot_id; }
+  const AgentCounters& counters() const { return counters_; }
+  const runtime::RejectCounter& rejects() const { return rejects_; }
+  const LocalMap& local_map() const { return local_map_; }
+  // Seq of the next scan expected (0 before any).
+  std::int64_t next_scan_seq() const { return next_scan_seq_; }
+  // Maps shipped and not yet acknowledged, ascending.
+  std::vector<std::int64_t> unacknowledged_maps() const;
+  bool joined() const { return frame_.has_value(); }
+  // x_WR from the latest corrected frame, if it can be related to the current map.
+  std::optional<Pose2> global_pose() const;
+  bool mission_ended() const { return mission_ended_; }
+  // The mission ended and every shipped map was acknowledged.
+  bool mission_done() const { return mission_ended_ && pending_.empty(); }
+  // Every per-scan processing time so far (ms), in scan order.
+  const std::vector<double>& scan_times_ms() const { return all_scan_times_ms_; }
+
+  // Publishes a status message now (also done by the timer).
+  void publish_status();
+
+ private:
+  struct PendingMap {
+    std::vector<std::uint8_t> bytes;  // the encoded local_map_t
+    std::chrono::steady_clock::time_point last_sent;
+  };
+  struct Frame {
+    std::int64_t map_seq = 0;  // the local map whose origin x_WL is
+    std::int64_t fusion_count = 0;
+    Pose2 x_WL;
+  };
+
+  void on_scan(const std::string& channel, const void* data, std::size_t size);
+  void process(const runtime::RobotScan& scan);
+  void ship();
+  void transmit(std::int64_t seq, PendingMap& map);
+  void resend_due();
+  void on_local_map_ack(const std::string& channel, const void* data, std::size_t size);
+  void on_corrected_frames(const std::string& channel, const void* data, std::size_t size);
+  void on_mission_end(const std::string& channel, const void* data, std::size_t size);
+  void send_ack(const runtime::ScanAck& ack);
+  void reject(runtime::RejectReason reason, std::string detail, std::string_view source);
+
+  runtime::Bus& bus_;
+  runtime::EventLoop& loop_;
+  AgentOptions options_;
+  LocalMap local_map_;
+  runtime::RejectCounter rejects_;
+  AgentCounters counters_;
+  std::mt19937_64 drop_random_;
+
+  std::int64_t next_scan_seq_ = 0;
+  std::optional<std::int64_t> last_scan_utime_;
+  std::optional<runtime::ScanAck> last_ack_;  // re-sent for a duplicate scan
+  bool map_has_scans_ = false;                // the current local map holds a scan
+
+  std::map<std::int64_t, PendingMap> pending_;        // shipped, not acked
+  std::map<std::int64_t, Pose2> shipped_final_x_LR_;  // per shipped map, for chaining frames
+  std::optional<Frame> frame_;
+  bool mission_ended_ = false;
+
+  std::vector<double> window_scan_times_ms_;
+  std::vector<double> all_scan_times_ms_;
+  bool window_covariance_ok_ = true;
+
+  std::vector<int> subscriptions_;
+  std::vector<int> timers_;
+};
+
+}  // namespace lmf::robot_agent

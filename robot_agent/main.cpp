@@ -1,0 +1,68 @@
+// lmf-agent: one robot's local map over LCM (DESIGN §1, §4). See --help and
+// robot_agent/agent_node.hpp for the protocol.
+#include <chrono>
+#include <cstdint>
+#include <exception>
+#include <iostream>
+#include <string>
+
+#include <boost/program_options.hpp>
+
+#include "lmf/mission/config_file.hpp"
+#include "robot_agent/agent_node.hpp"
+#include "runtime/bus.hpp"
+#include "runtime/event_loop.hpp"
+#include "runtime/options.hpp"
+
+namespace po = boost::program_options;
+namespace rt = lmf::runtime;
+
+int main(int argc, char** argv) {
+  constexpr const char* kProgram = "lmf-agent";
+  rt::CommonOptions common;
+  int robot_id = -1;
+  std::string config_file;
+  int resend_ms = 1000;
+  double drop = 0.0;
+  std::uint64_t drop_seed = 1;
+  po::options_description description("Options");
+  rt::add_common_options(description, common);
+  description.add_options()
+      ("robot-id", po::value(&robot_id)->required(), "this robot's id (>= 0): listens on <prefix>SCAN_<id>")
+      ("config", po::value(&config_file), "mission JSON config; its local_map section is used (default: built-in)")
+      ("resend-interval-ms", po::value(&resend_ms)->default_value(resend_ms),
+       "resend an unacknowledged local map after this many ms")
+      ("drop-local-maps", po::value(&drop)->default_value(drop),
+       "for tests: drop this fraction in [0, 1) of local-map transmissions (first sends and resends)")
+      ("drop-seed", po::value(&drop_seed)->default_value(drop_seed), "seed of the simulated loss");
+  rt::parse_options_or_exit(argc, argv, description, kProgram,
+                            "Runs one robot's EKF local map: scans in, local maps out (resent until acknowledged),\n"
+                            "scan acks, corrected frames in, status every 200 ms.");
+
+  lmf::robot_agent::AgentOptions options;
+  try {
+    if (!config_file.empty()) options.local_map = lmf::mission::load_mission_config(config_file).local_map;
+    options.robot_id = robot_id;
+    options.channels = rt::Channels(common.channel_prefix);
+    options.resend_interval = std::chrono::milliseconds(resend_ms);
+    options.drop_local_maps = drop;
+    options.drop_seed = drop_seed;
+    options.validate();
+  } catch (const std::exception& e) {
+    rt::exit_with_error(kProgram, e.what(), 2);
+  }
+
+  rt::Bus bus(common.lcm_url);
+  if (!bus.good()) rt::exit_with_error(kProgram, "cannot open LCM at '" + bus.url() + "'");
+  rt::EventLoop loop(bus);
+  lmf::robot_agent::AgentNode agent(bus, loop, options);
+  std::cerr << kProgram << " " << robot_id << ": listening on " << options.channels.scan(robot_id) << "\n";
+  loop.run();
+  agent.publish_status();
+  const auto& c = agent.counters();
+  std::cerr << kProgram << " " << robot_id << ": stopped; " << c.scans_processed << " scans, " << c.maps_shipped
+            << " local maps shipped, " << c.maps_acknowledged << " acknowledged, " << c.map_resends << " resends, "
+            << agent.rejects().total() << " messages rejected" << (agent.mission_done() ? ", mission done" : "")
+            << "\n";
+  return 0;
+}
