@@ -1,0 +1,152 @@
+// The log player (DESIGN §1): replays recorded or simulated robots over LCM as
+// if they were running now, with the robot-robot sightings that let robots join.
+//
+//   LMF_SCAN_<id>   out  each robot's scans, seq from 0 (the scan's index)
+//   LMF_SCAN_ACK    in   the agents' acks with their state after each scan
+//   LMF_SIGHTING    out  robot B seen by robot A, with each robot's local map
+//                        seq, x_L? and covariance taken from the ack of its last
+//                        scan at or before the sighting's time
+//   LMF_MISSION_END out  at the end, repeated mission_end_repeats times
+//
+// Two pacings:
+//  * lockstep: one scan at a time in global time order (ties: lower robot id),
+//    the next only after the agent acked it (resent after ack_timeout, given up
+//    after max_attempts sends); sightings strictly before the next scan's time
+//    are published first. Each local map is then published before the scans
+//    and sightings that follow it, so a FIFO server fuses exactly as lmf-offline.
+//  * rate R: each scan at (its time - first scan time) / R after the start,
+//    without waiting; a sighting once its time has come and both robots acked
+//    their last scan at or before it (after ack_timeout more, the latest ack
+//    before it stands in).
+// A sighting whose robot has not scanned yet (no local frame to relate) is
+// skipped, as lmf-offline does.
+//
+// Progress goes to an optional stream: one refreshed line (a terminal) or a
+// line every 10 % (anything else). Threading: everything runs on the loop's thread.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <optional>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "lmf/mission/mission_inputs.hpp"
+#include "runtime/bus.hpp"
+#include "runtime/channels.hpp"
+#include "runtime/event_loop.hpp"
+#include "runtime/messages.hpp"
+#include "runtime/rejection.hpp"
+
+namespace lmf::log_player {
+
+struct PlayerOptions {
+  runtime::Channels channels;
+  bool lockstep = false;
+  double rate = 1.0;                                // --rate pacing: log time / rate (> 0)
+  std::chrono::milliseconds ack_timeout{2000};      // > 0
+  int max_attempts = 10;                            // lockstep sends of one scan before giving up (>= 1)
+  std::chrono::milliseconds start_delay{0};         // before the first scan (subscribers starting)
+  std::chrono::milliseconds mission_end_interval{200};
+  int mission_end_repeats = 5;                      // >= 1
+  enum class Progress { kNone, kLine, kSteps } progress = Progress::kNone;
+  std::ostream* progress_stream = nullptr;          // required unless progress is kNone
+  std::function<void()> on_finished;                // after the last mission_end_t
+  // Throws std::invalid_argument naming the bad field.
+  void validate() const;
+};
+
+struct PlayerCounters {
+  std::int64_t scans_total = 0;
+  std::int64_t scans_sent = 0;       // first sends
+  std::int64_t scan_resends = 0;     // lockstep resends after a timeout
+  std::int64_t scans_acked = 0;      // distinct scans acknowledged
+  std::int64_t scans_given_up = 0;   // lockstep: no ack after max_attempts sends
+  std::int64_t acks_duplicate = 0;
+  std::int64_t sightings_total = 0;
+  std::int64_t sightings_published = 0;
+  std::int64_t sightings_approximate = 0;  // published with an earlier ack standing in
+  std::int64_t sightings_skipped = 0;      // a robot had not scanned yet (or unknown / bad values)
+  std::int64_t mission_end_sent = 0;
+};
+
+class PlayerNode {
+ public:
+  // Throws std::invalid_argument for bad options or inputs (no robots,
+  // duplicate or negative ids, scans out of time order).
+  PlayerNode(runtime::Bus& bus, runtime::EventLoop& loop, mission::MissionInputs inputs, PlayerOptions options);
+  ~PlayerNode();
+  PlayerNode(const PlayerNode&) = delete;
+  PlayerNode& operator=(const PlayerNode&) = delete;
+
+  // Starts the replay after options.start_delay. Call once.
+  void start();
+  // The last mission_end_t went out.
+  bool finished() const { return finished_; }
+  const PlayerCounters& counters() const { return counters_; }
+  const runtime::RejectCounter& rejects() const { return rejects_; }
+  const mission::MissionInputs& inputs() const { return inputs_; }
+  // The latest ack of (robot id, seq), if received.
+  std::optional<runtime::ScanAck> ack(int robot_id, std::int64_t seq) const;
+  // A one-line summary for logs.
+  std::string summary() const;
+
+ private:
+  struct ScanEvent {
+    std::int64_t utime = 0;
+    std::size_t robot = 0;  // index into inputs_.robots
+    std::size_t scan = 0;   // index = seq
+  };
+  enum class SightingOutcome { kPublished, kSkipped, kWait };
+
+  void begin();
+  void send_scan(const ScanEvent& event);
+  void on_ack(const std::string& channel, const void* data, std::size_t size);
+  // Lockstep.
+  void lockstep_step();
+  void lockstep_timeout(std::size_t event_index);
+  // Rate.
+  void rate_pump();
+  // Publishes sightings in order while they resolve (before `before_utime`, and
+  // due by wall time in rate mode); stops at the first that must wait.
+  void publish_sightings(std::int64_t before_utime, bool allow_fallback);
+  SightingOutcome try_sighting(const mission::SightingInput& sighting, bool allow_fallback);
+  std::optional<runtime::ScanAck> ack_at_or_before(std::size_t robot, std::int64_t utime, bool allow_fallback,
+                                                   bool* approximate) const;
+  void finish();
+  void send_mission_end();
+  void report_progress(bool force);
+  std::chrono::steady_clock::time_point due_time(std::int64_t utime) const;
+
+  runtime::Bus& bus_;
+  runtime::EventLoop& loop_;
+  mission::MissionInputs inputs_;
+  PlayerOptions options_;
+  runtime::RejectCounter rejects_;
+  PlayerCounters counters_;
+
+  std::map<int, std::size_t> robot_index_;           // robot id -> index
+  std::vector<ScanEvent> events_;                     // global time order
+  std::vector<std::vector<std::optional<runtime::ScanAck>>> acks_;  // [robot][seq]
+  std::size_t next_event_ = 0;
+  std::size_t next_sighting_ = 0;
+  int attempts_ = 0;                                  // lockstep: sends of events_[next_event_]
+  std::optional<int> ack_timer_;
+  std::optional<int> step_timer_;                     // the next lockstep step or mission_end_t repeat
+
+  bool started_ = false;
+  bool replay_done_ = false;  // every scan sent (and, lockstep, acked or given up)
+  bool finished_ = false;
+  std::chrono::steady_clock::time_point start_time_;
+  std::chrono::steady_clock::time_point last_send_time_;
+  std::chrono::steady_clock::time_point last_progress_time_;
+  int last_progress_decile_ = 0;
+
+  std::vector<int> subscriptions_;
+  std::vector<int> timers_;
+};
+
+}  // namespace lmf::log_player
