@@ -1,0 +1,175 @@
+#include "lmf/mission/mission_inputs.hpp"
+
+#include <algorithm>
+#include <fstream>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+
+#include "lmf/io/carmen.hpp"
+#include "lmf/io/config.hpp"
+#include "lmf/io/trajectory.hpp"
+#include "lmf/sim/random.hpp"
+
+namespace lmf::mission {
+namespace {
+
+// Reference poses at the scans' times (exact or nearest within 1 ms). Throws if a scan has none.
+std::vector<StampedPose> reference_for(const std::vector<LaserScan>& scans, const std::vector<StampedPose>& reference,
+                                       const std::filesystem::path& file) {
+  std::vector<StampedPose> out;
+  out.reserve(scans.size());
+  for (const LaserScan& scan : scans) {
+    const auto it = std::lower_bound(reference.begin(), reference.end(), scan.utime,
+                                     [](const StampedPose& p, int64_t t) { return p.utime < t; });
+    const StampedPose* best = nullptr;
+    if (it != reference.end()) best = &*it;
+    if (it != reference.begin() && (best == nullptr || scan.utime - std::prev(it)->utime < best->utime - scan.utime)) {
+      best = &*std::prev(it);
+    }
+    if (best == nullptr || std::abs(best->utime - scan.utime) > 1000) {
+      throw std::invalid_argument(file.string() + ": no reference pose within 1 ms of the scan at t = " +
+                                  std::to_string(static_cast<double>(scan.utime) * 1e-6) + " s");
+    }
+    out.push_back({scan.utime, best->pose});
+  }
+  return out;
+}
+
+// "belgioioso-noisy" for ".../belgioioso-noisy.log.gz".
+std::string log_name(const std::filesystem::path& file) {
+  std::filesystem::path name = file.filename();
+  if (name.extension() == ".gz") name = name.stem();
+  if (name.extension() == ".log") name = name.stem();
+  return name.string();
+}
+
+Pose2 add_noise(const Pose2& x, const SightingNoise& noise, sim::Rng& rng) {
+  // The perturbation is in the frame of x (SPmap convention): x ⊕ p.
+  const Pose2 p(rng.normal(0.0, noise.sigma_xy_m), rng.normal(0.0, noise.sigma_xy_m),
+                rng.normal(0.0, noise.sigma_phi_rad));
+  return compose(x, p);
+}
+
+}  // namespace
+
+Eigen::Matrix3d SightingNoise::covariance() const {
+  return Eigen::Vector3d(sigma_xy_m * sigma_xy_m, sigma_xy_m * sigma_xy_m, sigma_phi_rad * sigma_phi_rad)
+      .asDiagonal();
+}
+
+MissionInputs load_logs(const std::vector<std::filesystem::path>& logs, int split,
+                        const std::filesystem::path& reference, const SightingNoise& noise) {
+  if (logs.empty()) throw std::invalid_argument("load_logs: no log given");
+  if (split < 1) throw std::invalid_argument("load_logs: split must be >= 1, got " + std::to_string(split));
+  if (split > 1 && logs.size() != 1) throw std::invalid_argument("load_logs: --split needs exactly one log");
+
+  MissionInputs inputs;
+  std::vector<std::vector<StampedPose>> references;
+  const std::vector<StampedPose> reference_poses =
+      reference.empty() ? std::vector<StampedPose>{} : io::read_trajectory(reference);
+
+  int next_id = 0;
+  for (const auto& file : logs) {
+    io::CarmenLog log = io::read_carmen_log(file);
+    if (log.scans.empty()) throw std::invalid_argument(file.string() + ": no laser scans");
+    const std::size_t parts = static_cast<std::size_t>(split);
+    if (log.scans.size() < 2 * parts) {
+      throw std::invalid_argument(file.string() + ": " + std::to_string(log.scans.size()) +
+                                  " scans are too few to split into " + std::to_string(split));
+    }
+    for (std::size_t part = 0; part < parts; ++part) {
+      const std::size_t begin = log.scans.size() * part / parts;
+      const std::size_t end = log.scans.size() * (part + 1) / parts;
+      RobotLog robot;
+      robot.robot_id = next_id++;
+      robot.name = log_name(file) + (split > 1 ? "-part" + std::to_string(part + 1) : "");
+      robot.scans.assign(log.scans.begin() + static_cast<std::ptrdiff_t>(begin),
+                         log.scans.begin() + static_cast<std::ptrdiff_t>(end));
+      if (split > 1) {
+        // Simultaneous robots: every part starts at the time of the first.
+        const int64_t shift = robot.scans.front().utime - log.scans.front().utime;
+        std::vector<StampedPose> ref;
+        if (!reference_poses.empty()) ref = reference_for(robot.scans, reference_poses, reference);
+        for (auto& scan : robot.scans) scan.utime -= shift;
+        for (auto& pose : ref) pose.utime -= shift;
+        references.push_back(std::move(ref));
+      } else {
+        references.push_back(reference_poses.empty() ? std::vector<StampedPose>{}
+                                                     : reference_for(robot.scans, reference_poses, reference));
+      }
+      inputs.robots.push_back(std::move(robot));
+    }
+  }
+
+  sim::Rng rng(sim::derive_seed(noise.seed, 0x5167));
+  for (std::size_t i = 0; i < inputs.robots.size(); ++i) {
+    const int id = inputs.robots[i].robot_id;
+    if (!references[i].empty()) inputs.reference[id] = references[i];
+    if (i == 0 || references[i].empty() || references[0].empty()) continue;
+    // Robot i seen by the first robot when both have scanned once: its start in
+    // the first robot's start frame (= W), with sighting noise.
+    SightingInput sighting;
+    sighting.utime = std::max(inputs.robots[0].scans.front().utime, inputs.robots[i].scans.front().utime);
+    sighting.observer = inputs.robots[0].robot_id;
+    sighting.observed = id;
+    // The first robot's reference pose at its last scan not after the sighting.
+    const auto& ref0 = references[0];
+    const auto at = std::upper_bound(ref0.begin(), ref0.end(), sighting.utime,
+                                     [](int64_t t, const StampedPose& p) { return t < p.utime; });
+    const Pose2& x_WA = std::prev(at)->pose;
+    sighting.x_AB = add_noise(between(x_WA, references[i].front().pose), noise, rng);
+    sighting.covariance = noise.covariance();
+    inputs.sightings.push_back(sighting);
+  }
+  inputs.description = std::to_string(inputs.robots.size()) + " robot(s) from " + std::to_string(logs.size()) +
+                       " log(s)" + (split > 1 ? " (split " + std::to_string(split) + ")" : "");
+  return inputs;
+}
+
+MissionInputs load_sim_folder(const std::filesystem::path& dir, const SightingNoise& noise) {
+  if (!std::filesystem::is_directory(dir)) throw std::invalid_argument(dir.string() + ": not a folder");
+  MissionInputs inputs;
+  for (int id = 0;; ++id) {
+    const auto log_file = dir / ("robot" + std::to_string(id) + ".log");
+    if (!std::filesystem::exists(log_file)) break;
+    RobotLog robot;
+    robot.robot_id = id;
+    robot.name = "robot" + std::to_string(id);
+    robot.scans = io::read_carmen_log(log_file).scans;
+    const auto gt_file = dir / ("robot" + std::to_string(id) + ".gt");
+    if (std::filesystem::exists(gt_file)) inputs.reference[id] = reference_for(robot.scans, io::read_trajectory(gt_file), gt_file);
+    inputs.robots.push_back(std::move(robot));
+  }
+  if (inputs.robots.empty()) throw std::invalid_argument(dir.string() + ": no robot0.log");
+
+  const auto sightings_file = dir / "sightings.json";
+  if (std::filesystem::exists(sightings_file)) {
+    const nlohmann::json doc = io::read_json_file(sightings_file);
+    sim::Rng rng(sim::derive_seed(noise.seed, 0x5167));
+    const auto fail = [&](const std::string& what) {
+      throw std::invalid_argument(sightings_file.string() + ": " + what);
+    };
+    if (!doc.contains("sightings") || !doc["sightings"].is_array()) fail("no \"sightings\" array");
+    for (const auto& s : doc["sightings"]) {
+      if (!s.contains("utime") || !s.contains("observer") || !s.contains("observed") || !s.contains("x_AB") ||
+          !s["x_AB"].is_array() || s["x_AB"].size() != 3) {
+        fail("a sighting lacks utime, observer, observed or x_AB [x, y, phi]");
+      }
+      SightingInput in;
+      in.utime = s["utime"].get<int64_t>();
+      in.observer = s["observer"].get<int>();
+      in.observed = s["observed"].get<int>();
+      const Pose2 x_AB(s["x_AB"][0].get<double>(), s["x_AB"][1].get<double>(), s["x_AB"][2].get<double>());
+      in.x_AB = add_noise(x_AB, noise, rng);
+      in.covariance = noise.covariance();
+      inputs.sightings.push_back(in);
+    }
+    std::stable_sort(inputs.sightings.begin(), inputs.sightings.end(),
+                     [](const SightingInput& a, const SightingInput& b) { return a.utime < b.utime; });
+  }
+  inputs.description = std::to_string(inputs.robots.size()) + " simulated robot(s) from " + dir.string();
+  return inputs;
+}
+
+}  // namespace lmf::mission

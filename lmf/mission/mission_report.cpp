@@ -1,0 +1,266 @@
+#include "lmf/mission/mission_report.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+
+#include "lmf/fusion/map_export.hpp"
+#include "lmf/io/trajectory.hpp"
+
+namespace lmf::mission {
+namespace {
+
+using nlohmann::json;
+
+// Pooled RPE over robots: RMSE over all their relative motions.
+eval::RelativeError pool(const std::vector<eval::RelativeError>& parts, double distance_m) {
+  eval::RelativeError pooled;
+  pooled.distance_m = distance_m;
+  double sum_t2 = 0.0;
+  double sum_r2 = 0.0;
+  for (const auto& p : parts) {
+    pooled.count += p.count;
+    sum_t2 += static_cast<double>(p.count) * p.translation_rmse_m * p.translation_rmse_m;
+    sum_r2 += static_cast<double>(p.count) * p.rotation_rmse_deg * p.rotation_rmse_deg;
+  }
+  if (pooled.count > 0) {
+    pooled.translation_rmse_m = std::sqrt(sum_t2 / static_cast<double>(pooled.count));
+    pooled.rotation_rmse_deg = std::sqrt(sum_r2 / static_cast<double>(pooled.count));
+  }
+  return pooled;
+}
+
+json to_json(const eval::AbsoluteError& e) {
+  return {{"count", e.count},
+          {"position_rmse_m", e.position_rmse_m},
+          {"heading_rmse_deg", e.heading_rmse_deg},
+          {"position_max_m", e.position_max_m}};
+}
+
+json to_json(const eval::RelativeError& e) {
+  return {{"distance_m", e.distance_m},
+          {"count", e.count},
+          {"translation_rmse_m", e.translation_rmse_m},
+          {"rotation_rmse_deg", e.rotation_rmse_deg}};
+}
+
+json to_json(const TimingStats& t) {
+  return {{"count", t.count}, {"p50_ms", t.p50_ms}, {"p99_ms", t.p99_ms}, {"max_ms", t.max_ms}, {"mean_ms", t.mean_ms}};
+}
+
+json to_json(const fusion::FusionReport& r) {
+  json j = {{"robot_id", r.robot_id},
+            {"seq", r.seq},
+            {"local_segments", r.local_segments},
+            {"pairs_considered", r.pairs_considered},
+            {"gate_rejected", r.gate_rejected},
+            {"chi2_rejected", r.chi2_rejected},
+            {"overlap_rejected", r.overlap_rejected},
+            {"jc_candidates", r.jc_candidates},
+            {"jc_rejected", r.jc_rejected},
+            {"pairings_accepted", r.pairings_accepted},
+            {"update_rows", r.update_rows},
+            {"rows_dropped", r.rows_dropped},
+            {"segments_extended", r.segments_extended},
+            {"global_segments_fused", r.global_segments_fused},
+            {"new_segments", r.new_segments},
+            {"segments_after", r.size_after.segments},
+            {"submaps_after", r.size_after.submaps},
+            {"state_dimension_after", r.size_after.state_dimension},
+            {"time_ms", r.time.total_s * 1e3},
+            {"update_ms", r.time.update_s * 1e3}};
+  if (r.min_ldlt_pivot) j["min_ldlt_pivot"] = *r.min_ldlt_pivot;
+  if (r.min_eigenvalue) j["min_eigenvalue"] = *r.min_eigenvalue;
+  return j;
+}
+
+const char* status_name(fusion::SightingStatus s) {
+  switch (s) {
+    case fusion::SightingStatus::kJoined: return "joined";
+    case fusion::SightingStatus::kJoinedApproximately: return "joined_approximately";
+    case fusion::SightingStatus::kPending: return "pending";
+    case fusion::SightingStatus::kIgnored: return "ignored";
+  }
+  return "unknown";
+}
+
+std::vector<StampedPose> odometry_of(const RobotLog& log) {
+  std::vector<StampedPose> poses;
+  poses.reserve(log.scans.size());
+  for (const LaserScan& s : log.scans) poses.push_back({s.utime, s.odometry});
+  return poses;
+}
+
+const RobotLog* log_of(const MissionInputs& inputs, int robot_id) {
+  for (const RobotLog& log : inputs.robots) {
+    if (log.robot_id == robot_id) return &log;
+  }
+  return nullptr;
+}
+
+}  // namespace
+
+std::optional<MissionScore> score_mission(const MissionResult& result, const MissionInputs& inputs) {
+  MissionScore score;
+  std::vector<eval::PosePair> all_pairs;
+  std::vector<eval::RelativeError> rpe1;
+  std::vector<eval::RelativeError> rpe10;
+  for (const RobotResult& robot : result.robots) {
+    const auto ref = inputs.reference.find(robot.robot_id);
+    if (ref == inputs.reference.end() || robot.trajectory.empty()) continue;
+    RobotScore s;
+    s.robot_id = robot.robot_id;
+    const std::vector<eval::PosePair> pairs = eval::associate_by_time(robot.trajectory, ref->second);
+    if (pairs.size() < 2) continue;
+    s.ate = eval::absolute_trajectory_error(pairs);
+    s.rpe_1m = eval::relative_pose_error(pairs, 1.0);
+    s.rpe_10m = eval::relative_pose_error(pairs, 10.0);
+    if (const RobotLog* log = log_of(inputs, robot.robot_id)) {
+      s.odometry_ate = eval::absolute_trajectory_error(eval::associate_by_time(odometry_of(*log), ref->second));
+    }
+    all_pairs.insert(all_pairs.end(), pairs.begin(), pairs.end());
+    rpe1.push_back(s.rpe_1m);
+    rpe10.push_back(s.rpe_10m);
+    score.robots.push_back(s);
+  }
+  if (score.robots.empty()) return std::nullopt;
+  score.ate = eval::absolute_trajectory_error(all_pairs);
+  score.rpe_1m = pool(rpe1, 1.0);
+  score.rpe_10m = pool(rpe10, 10.0);
+  return score;
+}
+
+void write_trajectories(const std::filesystem::path& out,
+                        const std::map<std::string, std::vector<StampedPose>>& trajectories) {
+  std::filesystem::create_directories(out / "trajectories");
+  std::vector<StampedPose> all;
+  for (const auto& [name, trajectory] : trajectories) {
+    io::write_trajectory(out / "trajectories" / (name + ".txt"), trajectory);
+    all.insert(all.end(), trajectory.begin(), trajectory.end());
+  }
+  std::stable_sort(all.begin(), all.end(), [](const StampedPose& a, const StampedPose& b) { return a.utime < b.utime; });
+  io::write_trajectory(out / "trajectory.txt", all);
+}
+
+void write_map_files(const std::filesystem::path& out, const fusion::GlobalMap& map,
+                     const std::map<std::string, std::vector<StampedPose>>& trajectories) {
+  std::filesystem::create_directories(out);
+  fusion::write_map_json(map, out / "map.json");
+  std::vector<fusion::MapTrajectory> paths;
+  for (const auto& [name, trajectory] : trajectories) {
+    fusion::MapTrajectory path;
+    path.label = name;
+    for (const StampedPose& p : trajectory) path.poses.push_back(p.pose);
+    paths.push_back(std::move(path));
+  }
+  fusion::write_map_svg(map, out / "map.svg", paths);
+}
+
+void write_mission_outputs(const std::filesystem::path& out, const OfflineMission& mission,
+                           const MissionResult& result, const std::optional<MissionScore>& score) {
+  std::map<std::string, std::vector<StampedPose>> trajectories;
+  for (const RobotResult& robot : result.robots) {
+    if (!robot.trajectory.empty()) trajectories[robot.name] = robot.trajectory;
+  }
+  write_trajectories(out, trajectories);
+  write_map_files(out, mission.global_map(), trajectories);
+
+  json report;
+  report["inputs"] = mission.inputs().description;
+  const fusion::MapCounts counts = mission.global_map().counts();
+  report["map"] = {{"segments", counts.segments},
+                   {"submaps", counts.submaps},
+                   {"robots_joined", counts.robots_joined},
+                   {"graph_edges", counts.graph_edges},
+                   {"queued_local_maps", counts.queued_local_maps},
+                   {"state_dimension", counts.state_dimension}};
+  json robots = json::array();
+  for (const RobotResult& r : result.robots) {
+    robots.push_back({{"robot_id", r.robot_id},
+                      {"name", r.name},
+                      {"joined", r.joined},
+                      {"scans", r.scans},
+                      {"local_maps_shipped", r.local_maps_shipped},
+                      {"local_maps_fused", r.local_maps_fused},
+                      {"scan_timing", to_json(r.scan_timing)},
+                      {"covariance_always_ok", r.covariance_always_ok},
+                      {"first_covariance_problem", r.first_covariance_problem}});
+  }
+  report["robots"] = robots;
+  report["fusion_timing"] = to_json(result.fusion_timing);
+  report["global_covariance_always_ok"] = result.global_covariance_always_ok;
+  json fusions = json::array();
+  for (const auto& f : result.fusions) fusions.push_back(to_json(f));
+  report["fusions"] = fusions;
+  json sightings = json::array();
+  for (const auto& s : result.sightings) {
+    sightings.push_back({{"utime", s.input.utime},
+                         {"observer", s.input.observer},
+                         {"observed", s.input.observed},
+                         {"status", status_name(s.status)}});
+  }
+  report["sightings"] = sightings;
+  if (score) {
+    json per_robot = json::array();
+    for (const RobotScore& s : score->robots) {
+      per_robot.push_back({{"robot_id", s.robot_id},
+                           {"ate", to_json(s.ate)},
+                           {"rpe_1m", to_json(s.rpe_1m)},
+                           {"rpe_10m", to_json(s.rpe_10m)},
+                           {"odometry_ate", to_json(s.odometry_ate)}});
+    }
+    report["score"] = {{"ate", to_json(score->ate)},
+                       {"rpe_1m", to_json(score->rpe_1m)},
+                       {"rpe_10m", to_json(score->rpe_10m)},
+                       {"robots", per_robot}};
+  }
+  std::ofstream file(out / "report.json");
+  file << report.dump(1) << '\n';
+  if (!file) throw std::runtime_error((out / "report.json").string() + ": cannot write");
+}
+
+std::string summarize(const OfflineMission& mission, const MissionResult& result,
+                      const std::optional<MissionScore>& score) {
+  std::ostringstream s;
+  char line[256];
+  s << "lmf-offline: " << mission.inputs().description << "\n";
+  s << "robot                      joined  scans  maps  p50 ms  p99 ms  max ms   ATE m  odom ATE m\n";
+  for (const RobotResult& r : result.robots) {
+    const RobotScore* rs = nullptr;
+    if (score) {
+      for (const auto& x : score->robots) {
+        if (x.robot_id == r.robot_id) rs = &x;
+      }
+    }
+    std::snprintf(line, sizeof line, "%-26s %6s %6zu %5zu %7.2f %7.2f %7.2f %7s %11s\n", r.name.c_str(),
+                  r.joined ? "yes" : "NO", r.scans, r.local_maps_fused, r.scan_timing.p50_ms, r.scan_timing.p99_ms,
+                  r.scan_timing.max_ms, rs ? std::to_string(rs->ate.position_rmse_m).substr(0, 6).c_str() : "-",
+                  rs ? std::to_string(rs->odometry_ate.position_rmse_m).substr(0, 6).c_str() : "-");
+    s << line;
+  }
+  const fusion::MapCounts counts = mission.global_map().counts();
+  std::snprintf(line, sizeof line,
+                "map: %d segments, %d submaps, %d graph edges; %zu fusions (median %.1f ms, max %.1f ms); "
+                "P PSD throughout: %s\n",
+                counts.segments, counts.submaps, counts.graph_edges, result.fusions.size(),
+                result.fusion_timing.p50_ms, result.fusion_timing.max_ms,
+                result.global_covariance_always_ok ? "yes" : "NO");
+  s << line;
+  if (score) {
+    std::snprintf(line, sizeof line,
+                  "ATE (all robots, one alignment): %.3f m, %.2f deg over %zu poses; RPE 1 m: %.3f m %.2f deg; "
+                  "RPE 10 m: %.3f m %.2f deg\n",
+                  score->ate.position_rmse_m, score->ate.heading_rmse_deg, score->ate.count,
+                  score->rpe_1m.translation_rmse_m, score->rpe_1m.rotation_rmse_deg, score->rpe_10m.translation_rmse_m,
+                  score->rpe_10m.rotation_rmse_deg);
+    s << line;
+  }
+  return s.str();
+}
+
+}  // namespace lmf::mission

@@ -1,0 +1,52 @@
+// Scoring and reporting of a finished mission: ATE/RPE against the reference,
+// the odometry-only baseline, per-scan and per-fusion timings, the output files
+// of lmf-offline (trajectories, map, report.json) and its one-screen summary.
+#pragma once
+
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lmf/eval/trajectory_error.hpp"
+#include "lmf/mission/offline_mission.hpp"
+
+namespace lmf::mission {
+
+struct RobotScore {
+  int robot_id = 0;
+  eval::AbsoluteError ate;         // this robot alone, aligned on its own
+  eval::RelativeError rpe_1m;
+  eval::RelativeError rpe_10m;
+  eval::AbsoluteError odometry_ate;  // the raw odometry of its scans, aligned on its own
+};
+
+struct MissionScore {
+  eval::AbsoluteError ate;   // all joined robots together, one rigid alignment (one map frame)
+  eval::RelativeError rpe_1m;   // pooled over robots
+  eval::RelativeError rpe_10m;
+  std::vector<RobotScore> robots;
+};
+
+// Scores the joined robots that have a reference; nullopt when none has.
+std::optional<MissionScore> score_mission(const MissionResult& result, const MissionInputs& inputs);
+
+// Writes OUT/trajectory.txt (all robots, time order) and OUT/trajectories/NAME.txt.
+void write_trajectories(const std::filesystem::path& out,
+                        const std::map<std::string, std::vector<StampedPose>>& trajectories);
+
+// Writes OUT/map.json and OUT/map.svg (with the trajectories drawn).
+void write_map_files(const std::filesystem::path& out, const fusion::GlobalMap& map,
+                     const std::map<std::string, std::vector<StampedPose>>& trajectories);
+
+// Writes OUT/trajectory.txt, OUT/trajectories/NAME.txt, OUT/map.json,
+// OUT/map.svg and OUT/report.json. Throws std::runtime_error on I/O errors.
+void write_mission_outputs(const std::filesystem::path& out, const OfflineMission& mission,
+                           const MissionResult& result, const std::optional<MissionScore>& score);
+
+// The one-screen summary.
+std::string summarize(const OfflineMission& mission, const MissionResult& result,
+                      const std::optional<MissionScore>& score);
+
+}  // namespace lmf::mission

@@ -1,0 +1,103 @@
+// The whole mapping mission in one process, deterministic and without LCM:
+// one LocalMap per robot and the GlobalMap, fed in lockstep in time order —
+// each shipped local map is fused before the next scan — so a run is exactly
+// repeatable. lmf-offline wraps it; the distributed system is checked against it.
+//
+// The only clock read is std::chrono::steady_clock, to measure per-scan and
+// per-fusion times for the report; no decision depends on it.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lmf/fusion/global_map.hpp"
+#include "lmf/geometry/stamped_pose.hpp"
+#include "lmf/local_map/local_map.hpp"
+#include "lmf/mission/mission_inputs.hpp"
+#include "lmf/mission/trajectory_book.hpp"
+
+namespace lmf::mission {
+
+struct MissionConfig {
+  LocalMapConfig local_map;
+  fusion::GlobalMapConfig global_map;
+  SightingNoise sighting_noise;  // used when building the inputs
+  void validate() const;         // throws std::invalid_argument naming the field
+};
+
+// Order statistics of a set of durations (ms).
+struct TimingStats {
+  std::size_t count = 0;
+  double p50_ms = 0.0;
+  double p99_ms = 0.0;
+  double max_ms = 0.0;
+  double mean_ms = 0.0;
+};
+TimingStats timing_stats(std::vector<double> durations_ms);
+
+struct RobotResult {
+  int robot_id = 0;
+  std::string name;
+  bool joined = false;
+  std::size_t scans = 0;
+  std::size_t local_maps_shipped = 0;
+  std::size_t local_maps_fused = 0;
+  std::vector<StampedPose> trajectory;  // final estimate of every scan pose in W (joined robots)
+  std::vector<double> scan_times_ms;    // per-scan local map time
+  TimingStats scan_timing;
+  bool covariance_always_ok = true;     // every scan's covariance check passed
+  std::string first_covariance_problem;
+};
+
+struct SightingEvent {
+  SightingInput input;
+  fusion::SightingStatus status = fusion::SightingStatus::kPending;
+};
+
+struct MissionResult {
+  std::vector<RobotResult> robots;
+  std::vector<fusion::FusionReport> fusions;  // in fusion order
+  std::vector<SightingEvent> sightings;
+  TimingStats fusion_timing;
+  bool global_covariance_always_ok = true;    // every fusion's health check passed
+};
+
+class OfflineMission {
+ public:
+  // Throws std::invalid_argument for an invalid config or inputs (no robots,
+  // duplicate ids).
+  OfflineMission(MissionConfig config, MissionInputs inputs);
+
+  // Runs every scan and sighting in time order (scans before sightings at equal
+  // times), ships and fuses each local map as its policy says, and at the end
+  // ships the unfinished local maps too. Call once.
+  MissionResult run();
+
+  const fusion::GlobalMap& global_map() const { return global_map_; }
+  const MissionInputs& inputs() const { return inputs_; }
+
+ private:
+  struct Agent {
+    RobotLog* log = nullptr;
+    LocalMap local_map;
+    std::size_t next_scan = 0;
+  };
+
+  void process_scan(Agent& agent, RobotResult& result);
+  void ship(Agent& agent, RobotResult& result);
+  void record(const std::vector<fusion::FusionReport>& reports);
+  void apply_sighting(const SightingInput& sighting);
+
+  MissionConfig config_;
+  MissionInputs inputs_;
+  fusion::GlobalMap global_map_;
+  std::vector<Agent> agents_;
+  TrajectoryBook trajectories_;
+  MissionResult result_;
+  bool ran_ = false;
+};
+
+}  // namespace lmf::mission
