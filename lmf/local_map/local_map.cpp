@@ -152,9 +152,11 @@ std::vector<LocalMap::Candidate> LocalMap::pair_observations(const std::vector<O
                                                              ScanReport& report) const {
   std::vector<Candidate> candidates;
   if (observations.empty()) return candidates;
-  const Pose2 x_LR_hat = x_LR();
-  std::vector<Pose2> x_LE(observations.size());
-  for (std::size_t i = 0; i < observations.size(); ++i) x_LE[i] = compose(x_LR_hat, observations[i].location);
+  const local_map::RotatedPose x_LR_hat(x_LR());
+  std::vector<local_map::RotatedPose> x_LE(observations.size());
+  for (std::size_t i = 0; i < observations.size(); ++i) {
+    x_LE[i] = local_map::RotatedPose(compose(x_LR_hat.x, observations[i].location));
+  }
 
   // Most (observation, segment) combinations are far from compatible. The same
   // test is first evaluated in fixed-size form from the five entity blocks of P
@@ -168,19 +170,22 @@ std::vector<LocalMap::Candidate> LocalMap::pair_observations(const std::vector<O
   const double tolerance = config_.careful_inverse_tolerance;
   for (const spmap::Entity& s : map_.entities()) {
     if (s.kind != EntityKind::kSegment) continue;
-    const Pose2 x_SL = inverse(s.location);
+    const local_map::RotatedPose x_LS(s.location);
     const Eigen::Matrix2d P_SS = P.block<2, 2>(s.offset, s.offset);
     const Eigen::Matrix<double, 2, 3> P_SR = P.block<2, 3>(s.offset, ro);
     for (std::size_t i = 0; i < observations.size(); ++i) {
       ++report.pairings_tried;
-      // Overlap of the extents first: it is cheap and both tests must pass.
-      const Pose2 x_SE = compose(x_SL, x_LE[i]);
-      if (spmap::extent_overlap(x_SE, s.length_m, observations[i].length_m) <= -config_.overlap_gap_tolerance_m) {
+      const local_map::PairingJacobians pj =
+          local_map::pairing_jacobians(x_LS, x_LR_hat, observations[i].location, x_LE[i]);
+      // Overlap of the extents (spmap::extent_overlap on E seen from S) first:
+      // it is cheap and both tests must pass.
+      const double half_s = 0.5 * s.length_m;
+      const double half_e = 0.5 * std::abs(pj.cos_SE) * observations[i].length_m;
+      const double overlap = std::min(half_s, pj.x_SE.x + half_e) - std::max(-half_s, pj.x_SE.x - half_e);
+      if (overlap <= -config_.overlap_gap_tolerance_m) {
         ++report.pairings_rejected_overlap;
         continue;
       }
-      const local_map::PairingJacobians pj =
-          local_map::pairing_jacobians(s.location, x_LR_hat, observations[i].location);
       const Eigen::Matrix2d R = pj.J_E * observations[i].covariance * pj.J_E.transpose();
       const Eigen::Matrix2d uncorrelated = pj.H_S * P_SS * pj.H_S.transpose() + pj.H_R * P_RR * pj.H_R.transpose() + R;
       const Eigen::Matrix2d cross = pj.H_S * P_SR * pj.H_R.transpose();

@@ -70,26 +70,34 @@ spmap::ImplicitMeasurement pairing_measurement(const spmap::StochasticMap& map, 
   return spmap::measurement_from_chain(links, {1, 2}, noise);
 }
 
-PairingJacobians pairing_jacobians(const Pose2& x_LS, const Pose2& x_LR, const Pose2& x_RE) {
-  // value = a ⊕ b ⊕ c with a = ⊖(x_LS ⊕ B_Sᵀp_S), b = x_LR ⊕ p_R, c = x_RE ⊕ B_Eᵀp_E.
-  const Pose2 a = inverse(x_LS);
-  const Pose2 bc = compose(x_LR, x_RE);
-  const Pose2 ab = compose(a, x_LR);
-  const Pose2 value = compose(a, bc);
-  const Pose2 zero;
-  Eigen::Matrix<double, 3, 2> Bt = Eigen::Matrix<double, 3, 2>::Zero();  // B_segmentᵀ
-  Bt(1, 0) = 1.0;
-  Bt(2, 1) = 1.0;
-  const Eigen::Matrix<double, 3, 2> J_S =
-      J1compose(a, bc) * Jinverse(x_LS) * J2compose(x_LS, zero) * Bt;
-  const Eigen::Matrix3d J_R = J2compose(a, bc) * J1compose(x_LR, x_RE) * J2compose(x_LR, zero);
-  const Eigen::Matrix<double, 3, 2> J_E = J2compose(ab, x_RE) * J2compose(x_RE, zero) * Bt;
+RotatedPose::RotatedPose(const Pose2& pose) : x(pose), c(std::cos(pose.phi)), s(std::sin(pose.phi)) {}
+
+PairingJacobians pairing_jacobians(const RotatedPose& x_LS, const RotatedPose& x_LR, const Pose2& x_RE,
+                                   const RotatedPose& x_LE) {
   PairingJacobians out;
-  out.h = {value.y, value.phi};
-  out.H_S = J_S.bottomRows<2>();
-  out.H_R = J_R.bottomRows<2>();
-  out.J_E = J_E.bottomRows<2>();
+  // v = ⊖x_LS ⊕ x_LE: E's frame in S's frame.
+  const double dx = x_LE.x.x - x_LS.x.x;
+  const double dy = x_LE.x.y - x_LS.x.y;
+  const double vx = x_LS.c * dx + x_LS.s * dy;
+  const double vy = -x_LS.s * dx + x_LS.c * dy;
+  out.cos_SE = x_LE.c * x_LS.c + x_LE.s * x_LS.s;
+  out.x_SE = Pose2(vx, vy, wrap_angle(x_LE.x.phi - x_LS.x.phi));
+  out.h = {vy, out.x_SE.phi};
+  // S's perturbation moves its frame: the lateral error at E's midpoint is
+  // -p_y - v.x p_phi; the angle -p_phi.
+  out.H_S << -1.0, -vx, 0.0, -1.0;
+  // R's perturbation (in R's frame) seen in S's frame: rotation by phi_R - phi_S.
+  const double c_rs = x_LR.c * x_LS.c + x_LR.s * x_LS.s;
+  const double s_rs = x_LR.s * x_LS.c - x_LR.c * x_LS.s;
+  const double e_x = c_rs * x_RE.x - s_rs * x_RE.y;  // (R(phi_R - phi_S) t_RE).x
+  out.H_R << s_rs, c_rs, e_x, 0.0, 0.0, 1.0;
+  // E's lateral error is along E's own normal: cos of E's angle in S.
+  out.J_E << out.cos_SE, 0.0, 0.0, 1.0;
   return out;
+}
+
+PairingJacobians pairing_jacobians(const Pose2& x_LS, const Pose2& x_LR, const Pose2& x_RE) {
+  return pairing_jacobians(RotatedPose(x_LS), RotatedPose(x_LR), x_RE, RotatedPose(compose(x_LR, x_RE)));
 }
 
 Pose2 observation_in_segment(const spmap::StochasticMap& map, spmap::EntityId segment, spmap::EntityId robot,

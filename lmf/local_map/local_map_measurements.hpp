@@ -39,15 +39,34 @@ Eigen::Matrix3d odometry_noise(const Pose2& u, const LocalMapConfig& config);
 spmap::ImplicitMeasurement pairing_measurement(const spmap::StochasticMap& map, spmap::EntityId segment,
                                                spmap::EntityId robot, const ObservedSegment& observation);
 
-// The same measurement in fixed-size form for the hot pairing loop: value and
-// Jacobians of h = B_S(⊖x_LS ⊕ x_LR ⊕ x_RE) with respect to p_S, p_R and p_E
-// (R = J_E Cov(p_E) J_Eᵀ). Equal to pairing_measurement() (tested).
+// The same measurement in fixed-size, closed form for the hot pairing loop:
+// value and Jacobians of h = B_S(⊖x_LS ⊕ x_LR ⊕ x_RE) with respect to p_S, p_R
+// and p_E (R = J_E Cov(p_E) J_Eᵀ), and E seen from S. Equal to
+// pairing_measurement() (tested). With v = ⊖x_LS ⊕ x_LE (x_LE = x_LR ⊕ x_RE):
+//   H_S = [[-1, -v.x], [0, -1]],
+//   H_R = [[sin(phi_R - phi_S), cos(phi_R - phi_S), (R(phi_R - phi_S) t_RE).x], [0, 0, 1]],
+//   J_E = [[cos(v.phi), 0], [0, 1]].
 struct PairingJacobians {
   Eigen::Vector2d h;                // (lateral m, angle rad, wrapped)
   Eigen::Matrix2d H_S;
   Eigen::Matrix<double, 2, 3> H_R;
   Eigen::Matrix2d J_E;
+  Pose2 x_SE;                       // v: E seen from S
+  double cos_SE = 1.0;              // cos(v.phi)
 };
+
+// A location with the cosine and sine of its angle, computed once.
+struct RotatedPose {
+  Pose2 x;
+  double c = 1.0;
+  double s = 0.0;
+  RotatedPose() = default;
+  explicit RotatedPose(const Pose2& pose);
+};
+
+// No trigonometry: x_LE must be x_LR ⊕ x_RE.
+PairingJacobians pairing_jacobians(const RotatedPose& x_LS, const RotatedPose& x_LR, const Pose2& x_RE,
+                                   const RotatedPose& x_LE);
 PairingJacobians pairing_jacobians(const Pose2& x_LS, const Pose2& x_LR, const Pose2& x_RE);
 
 // E seen from S at the current estimate: ⊖x̂_LS ⊕ x̂_LR ⊕ x_RE.

@@ -102,6 +102,9 @@ TEST(PairingMeasurement, FixedSizeFormEqualsTheChainForm) {
       EXPECT_TRUE(matrices_near(b.entity == segment ? Eigen::MatrixXd(pj.H_S) : Eigen::MatrixXd(pj.H_R), b.J, 1e-12));
     }
     EXPECT_TRUE(matrices_near(pj.J_E * e.covariance * pj.J_E.transpose(), m.R, 1e-15));
+    const Pose2 x_SE = compose(inverse(c.x_LS), compose(c.x_LR, c.x_RE));
+    EXPECT_TRUE(is_near(pj.x_SE, x_SE, 1e-12, 1e-12));
+    EXPECT_NEAR(pj.cos_SE, std::cos(x_SE.phi), 1e-12);
   }
 }
 
