@@ -1,0 +1,106 @@
+// lmf-server: the fusion server process (DESIGN §1, §5, §7). Parses flags,
+// loads the global_map section of a mission config, runs ServerNode on the
+// event loop; SIGUSR1 writes the outputs now, SIGINT/SIGTERM finish the
+// fusion in progress, write them and exit 0.
+#include <csignal>
+#include <iostream>
+#include <optional>
+#include <string>
+
+#include <boost/asio/signal_set.hpp>
+#include <boost/program_options.hpp>
+
+#include "fusion_server/server_node.hpp"
+#include "lmf/mission/config_file.hpp"
+#include "runtime/bus.hpp"
+#include "runtime/event_loop.hpp"
+#include "runtime/options.hpp"
+
+namespace po = boost::program_options;
+
+int main(int argc, char** argv) {
+  constexpr const char* kProgram = "lmf-server";
+  lmf::runtime::CommonOptions common;
+  lmf::server::ServerOptions options;
+  std::string config_file;
+  std::string out_dir = options.out_dir.string();
+  int first_robot = 0;
+  int queue_capacity = static_cast<int>(options.queue_capacity);
+  int status_ms = static_cast<int>(options.status_interval.count());
+  int frames_ms = static_cast<int>(options.frames_interval.count());
+  int map_ms = static_cast<int>(options.map_interval.count());
+  int write_s = 0;
+
+  po::options_description description("Options");
+  description.add_options()
+      ("config", po::value<std::string>(&config_file),
+       "mission config JSON; its global_map section configures the fusion (default: built-in defaults)")
+      ("out", po::value<std::string>(&out_dir)->default_value(out_dir),
+       "folder for map.json, map.svg, trajectory.txt, trajectories/robotN.txt, report.json")
+      ("first-robot", po::value<int>(&first_robot)->default_value(first_robot),
+       "robot that joins at start with L = W; -1: the first local map received defines W")
+      ("max-robots", po::value<int>(&options.max_robots)->default_value(options.max_robots),
+       "robot ids 0 .. N-1 are accepted; others are rejected as unknown_robot")
+      ("queue-capacity", po::value<int>(&queue_capacity)->default_value(queue_capacity),
+       "local maps waiting for the fusion worker; when full, new ones are not acked (agents resend)")
+      ("status-interval-ms", po::value<int>(&status_ms)->default_value(status_ms), "server_status_t period, ms")
+      ("frames-interval-ms", po::value<int>(&frames_ms)->default_value(frames_ms),
+       "corrected_frames_t period, ms (also sent after each fusion)")
+      ("map-interval-ms", po::value<int>(&map_ms)->default_value(map_ms),
+       "global_map_t period, ms (also sent after fusions, at most every 250 ms)")
+      ("write-interval-s", po::value<int>(&write_s)->default_value(write_s),
+       "write the outputs every N s; 0: only on SIGUSR1 and at exit");
+  lmf::runtime::add_common_options(description, common);
+  lmf::runtime::parse_options_or_exit(
+      argc, argv, description, kProgram,
+      "Fuses the robots' local maps (LMF_LOCAL_MAP, LMF_SIGHTING) into the global map in a background thread,\n"
+      "acks them, publishes corrected frames, the map and its status. SIGUSR1 writes the outputs now;\n"
+      "SIGINT/SIGTERM finish the fusion in progress, write them and exit.");
+
+  try {
+    if (!config_file.empty()) options.global_map = lmf::mission::load_mission_config(config_file).global_map;
+    options.out_dir = out_dir;
+    options.first_robot = first_robot < 0 ? std::nullopt : std::optional<int>(first_robot);
+    if (queue_capacity < 1) throw std::invalid_argument("--queue-capacity must be >= 1");
+    if (write_s < 0) throw std::invalid_argument("--write-interval-s must be >= 0");
+    options.queue_capacity = static_cast<std::size_t>(queue_capacity);
+    options.status_interval = std::chrono::milliseconds(status_ms);
+    options.frames_interval = std::chrono::milliseconds(frames_ms);
+    options.map_interval = std::chrono::milliseconds(map_ms);
+    options.write_interval = std::chrono::seconds(write_s);
+    options.validate();
+  } catch (const std::exception& e) {
+    lmf::runtime::exit_with_error(kProgram, e.what(), 2);
+  }
+
+  lmf::runtime::Bus bus(common.lcm_url);
+  if (!bus.good()) lmf::runtime::exit_with_error(kProgram, "cannot open LCM at '" + bus.url() + "'");
+  lmf::runtime::EventLoop loop(bus);
+  std::optional<lmf::server::ServerNode> node;
+  try {
+    node.emplace(bus, loop, lmf::runtime::Channels(common.channel_prefix), options);
+  } catch (const std::exception& e) {
+    lmf::runtime::exit_with_error(kProgram, e.what());
+  }
+
+  boost::asio::signal_set usr1(loop.context(), SIGUSR1);
+  std::function<void()> wait_usr1 = [&] {
+    usr1.async_wait([&](const boost::system::error_code& error, int) {
+      if (error) return;
+      node->request_write();
+      wait_usr1();
+    });
+  };
+  wait_usr1();
+
+  std::cerr << kProgram << ": running on " << (bus.url().empty() ? "LCM default URL" : bus.url()) << ", prefix '"
+            << common.channel_prefix << "', output " << options.out_dir << '\n';
+  loop.run();
+  usr1.cancel();
+  const bool written = node->shutdown(true);
+  std::cerr << kProgram << ": stopped"
+            << (loop.stopped_by_signal() ? " by signal " + std::to_string(*loop.stopped_by_signal()) : std::string())
+            << "; " << node->view().fusion_count << " fusions, outputs " << (written ? "written to " : "NOT written to ")
+            << options.out_dir << '\n';
+  return written ? 0 : 1;
+}

@@ -1,0 +1,603 @@
+#include "fusion_server/server_node.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <exception>
+#include <fstream>
+#include <iostream>
+#include <stdexcept>
+#include <string_view>
+
+#include <nlohmann/json.hpp>
+
+#include "lmf/fusion/map_export.hpp"
+#include "lmf/io/trajectory.hpp"
+
+namespace lmf::server {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using nlohmann::json;
+
+double ms_since(Clock::time_point since, Clock::time_point now = Clock::now()) {
+  return std::chrono::duration<double, std::milli>(now - since).count();
+}
+
+std::int64_t wall_utime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+// The fusion's own validation failed (after runtime's passed): name a reason.
+runtime::RejectReason reason_of(std::string_view what) {
+  if (what.find("already") != std::string_view::npos) return runtime::RejectReason::kStaleSequence;
+  if (what.find("covariance") != std::string_view::npos) return runtime::RejectReason::kCovarianceNotPsd;
+  if (what.find("not finite") != std::string_view::npos) return runtime::RejectReason::kNonFinite;
+  return runtime::RejectReason::kOutOfRange;
+}
+
+// Same threshold as lmf-offline's "global covariance always ok".
+bool health_ok(const fusion::FusionReport& r) {
+  if (r.min_ldlt_pivot && *r.min_ldlt_pivot < -1e-9) return false;
+  if (r.min_eigenvalue && *r.min_eigenvalue < -1e-9) return false;
+  return true;
+}
+
+const char* sighting_status_name(fusion::SightingStatus s) {
+  switch (s) {
+    case fusion::SightingStatus::kJoined: return "joined";
+    case fusion::SightingStatus::kJoinedApproximately: return "joined_approximately";
+    case fusion::SightingStatus::kPending: return "pending";
+    case fusion::SightingStatus::kIgnored: return "ignored";
+  }
+  return "unknown";
+}
+
+json report_json(const fusion::FusionReport& r, double queue_wait_ms) {
+  json j = {{"robot_id", r.robot_id},
+            {"seq", r.seq},
+            {"local_segments", r.local_segments},
+            {"anchored_backward", r.anchored_backward},
+            {"pairs_considered", r.pairs_considered},
+            {"gate_rejected", r.gate_rejected},
+            {"chi2_rejected", r.chi2_rejected},
+            {"overlap_rejected", r.overlap_rejected},
+            {"jc_candidates", r.jc_candidates},
+            {"jc_rejected", r.jc_rejected},
+            {"pairings_accepted", r.pairings_accepted},
+            {"update_rows", r.update_rows},
+            {"rows_dropped", r.rows_dropped},
+            {"rows_kept", r.rows_kept},
+            {"segments_extended", r.segments_extended},
+            {"global_segments_fused", r.global_segments_fused},
+            {"new_segments", r.new_segments},
+            {"segments_after", r.size_after.segments},
+            {"submaps_after", r.size_after.submaps},
+            {"graph_edges_after", r.size_after.graph_edges},
+            {"state_dimension_after", r.size_after.state_dimension},
+            {"time_ms", r.time.total_s * 1e3},
+            {"update_ms", r.time.update_s * 1e3},
+            {"queue_wait_ms", queue_wait_ms}};
+  if (r.min_ldlt_pivot) j["min_ldlt_pivot"] = *r.min_ldlt_pivot;
+  if (r.min_eigenvalue) j["min_eigenvalue"] = *r.min_eigenvalue;
+  return j;
+}
+
+// Nearest-rank order statistics of durations (ms), as lmf-offline reports them.
+json timing_json(std::vector<double> ms) {
+  json j = {{"count", ms.size()}, {"p50_ms", 0.0}, {"p99_ms", 0.0}, {"max_ms", 0.0}, {"mean_ms", 0.0}};
+  if (ms.empty()) return j;
+  std::sort(ms.begin(), ms.end());
+  const auto rank = [&](double q) {
+    const auto k = static_cast<std::size_t>(std::ceil(q * static_cast<double>(ms.size())));
+    return ms[std::clamp<std::size_t>(k, 1, ms.size()) - 1];
+  };
+  double sum = 0.0;
+  for (double v : ms) sum += v;
+  j["p50_ms"] = rank(0.50);
+  j["p99_ms"] = rank(0.99);
+  j["max_ms"] = ms.back();
+  j["mean_ms"] = sum / static_cast<double>(ms.size());
+  return j;
+}
+
+json counts_json(const fusion::MapCounts& c) {
+  return {{"segments", c.segments},
+          {"submaps", c.submaps},
+          {"robots_joined", c.robots_joined},
+          {"graph_edges", c.graph_edges},
+          {"queued_local_maps", c.queued_local_maps},
+          {"state_dimension", c.state_dimension}};
+}
+
+fusion::RobotSighting to_fusion(const runtime::Sighting& s) {
+  fusion::RobotSighting out;
+  out.utime = s.utime;
+  out.observer_id = s.observer_id;
+  out.observed_id = s.observed_id;
+  out.observer_seq = s.observer_seq;
+  out.x_LA = s.x_LA;
+  out.cov_LA = s.cov_LA;
+  out.x_AB = s.x_AB;
+  out.cov_AB = s.covariance;
+  out.observed_seq = s.observed_seq;
+  out.x_LB = s.x_LB;
+  out.cov_LB = s.cov_LB;
+  return out;
+}
+
+}  // namespace
+
+void ServerOptions::validate() const {
+  global_map.validate();
+  if (first_robot && *first_robot < 0) throw std::invalid_argument("--first-robot must be >= 0");
+  if (max_robots < 1) throw std::invalid_argument("--max-robots must be >= 1");
+  if (first_robot && *first_robot >= max_robots) {
+    throw std::invalid_argument("--first-robot " + std::to_string(*first_robot) + " is not below --max-robots " +
+                                std::to_string(max_robots));
+  }
+  if (queue_capacity < 1) throw std::invalid_argument("--queue-capacity must be >= 1");
+  if (status_interval.count() <= 0) throw std::invalid_argument("--status-interval-ms must be > 0");
+  if (frames_interval.count() <= 0) throw std::invalid_argument("--frames-interval-ms must be > 0");
+  if (map_interval.count() <= 0) throw std::invalid_argument("--map-interval-ms must be > 0");
+  if (map_min_interval.count() < 0) throw std::invalid_argument("map_min_interval must be >= 0");
+  if (write_interval.count() < 0) throw std::invalid_argument("--write-interval-s must be >= 0");
+}
+
+// What one worker task produced, handed to the loop thread.
+struct ServerNode::Outcome {
+  enum class Kind { kLocalMap, kSighting, kWrite } kind = Kind::kLocalMap;
+  int robot_id = 0;
+  std::int64_t seq = 0;
+  std::optional<runtime::Rejection> rejection;  // the GlobalMap refused the input
+  bool queued_in_map = false;                   // local map held until its robot joins
+  std::vector<std::pair<int, std::int64_t>> fused;  // (robot, seq) fused by this task
+  MapView view;
+};
+
+ServerNode::ServerNode(runtime::Bus& bus, runtime::EventLoop& loop, runtime::Channels channels,
+                       ServerOptions options)
+    : bus_(bus), loop_(loop), channels_(std::move(channels)), options_(std::move(options)),
+      map_((options_.validate(), options_.global_map)) {
+  if (options_.first_robot) {
+    record_fusions(map_.join_robot(*options_.first_robot, Pose2()), 0.0);  // L = W (DESIGN §5)
+    seqs_[*options_.first_robot];
+  }
+  view_ = make_view();
+
+  subscriptions_.push_back(bus_.subscribe(
+      channels_.local_map(), [this](const std::string&, const void* data, std::size_t size) { on_local_map(data, size); }));
+  subscriptions_.push_back(bus_.subscribe(
+      channels_.sighting(), [this](const std::string&, const void* data, std::size_t size) { on_sighting(data, size); }));
+
+  timers_.push_back(loop_.every(options_.status_interval, [this] { publish_status(); }));
+  timers_.push_back(loop_.every(options_.frames_interval, [this] { publish_frames(); }));
+  timers_.push_back(loop_.every(options_.map_interval, [this] { publish_global_map(); }));
+  if (options_.write_interval.count() > 0) {
+    timers_.push_back(loop_.every(std::chrono::duration_cast<std::chrono::milliseconds>(options_.write_interval),
+                                  [this] { request_write(); }));
+  }
+  worker_ = std::make_unique<FusionWorker>(options_.queue_capacity);
+}
+
+ServerNode::~ServerNode() { shutdown(false); }
+
+// ---- loop thread: receiving -------------------------------------------------
+
+void ServerNode::on_local_map(const void* data, std::size_t size) {
+  ++stats_.local_maps_received;
+  if (stopped_) return;
+  auto decoded = runtime::decode<LocalMapSnapshot>(data, size, options_.limits);
+  if (!decoded) {
+    rejects_.record(decoded.rejection(), channels_.local_map());
+    return;
+  }
+  LocalMapSnapshot& snapshot = decoded.value();
+  const int robot_id = snapshot.robot_id;
+  const std::int64_t seq = snapshot.seq;
+  const std::string where = "local map (" + std::to_string(robot_id) + ", " + std::to_string(seq) + ")";
+  if (robot_id >= options_.max_robots) {
+    rejects_.record({runtime::RejectReason::kUnknownRobot,
+                     where + ": robot id not below --max-robots " + std::to_string(options_.max_robots)},
+                    channels_.local_map());
+    return;
+  }
+  RobotSeqs& seqs = seqs_[robot_id];
+  if (seqs.applied.count(seq) != 0) {
+    // A resend whose ack was lost, or a replay: answer, never re-apply.
+    rejects_.record({runtime::RejectReason::kStaleSequence, where + ": already applied"}, channels_.local_map());
+    publish_ack(robot_id, seq, runtime::LocalMapAck::Status::kDuplicate);
+    return;
+  }
+  if (seqs.waiting.count(seq) != 0) {
+    ++stats_.resends_while_waiting;  // its ack follows when the worker applied it
+    return;
+  }
+  const auto arrived = Clock::now();
+  const bool taken = worker_->try_push(
+      [this, snapshot = std::move(snapshot), arrived]() mutable { fuse_task(std::move(snapshot), arrived); });
+  if (!taken) {
+    // Back-pressure: not acked, so the agent resends it (never dropped silently).
+    ++stats_.deferred_queue_full;
+    if (stats_.deferred_queue_full <= 10 || stats_.deferred_queue_full % 100 == 0) {
+      std::cerr << "lmf-server: fusion queue full (" << options_.queue_capacity << "), " << where
+                << " deferred until resent (" << stats_.deferred_queue_full << " so far)\n";
+    }
+    return;
+  }
+  seqs.waiting.insert(seq);
+}
+
+void ServerNode::on_sighting(const void* data, std::size_t size) {
+  ++stats_.sightings_received;
+  if (stopped_) return;
+  auto decoded = runtime::decode<runtime::Sighting>(data, size, options_.limits);
+  if (!decoded) {
+    rejects_.record(decoded.rejection(), channels_.sighting());
+    return;
+  }
+  const runtime::Sighting& s = decoded.value();
+  const std::string where = "sighting " + std::to_string(s.observer_id) + " -> " + std::to_string(s.observed_id) +
+                            " at " + std::to_string(s.utime);
+  if (s.observer_id >= options_.max_robots || s.observed_id >= options_.max_robots) {
+    rejects_.record({runtime::RejectReason::kUnknownRobot,
+                     where + ": robot id not below --max-robots " + std::to_string(options_.max_robots)},
+                    channels_.sighting());
+    return;
+  }
+  if (s.observer_id == s.observed_id) {
+    rejects_.record({runtime::RejectReason::kOutOfRange, where + ": a robot cannot sight itself"},
+                    channels_.sighting());
+    return;
+  }
+  if (!sightings_seen_.insert({s.utime, s.observer_id, s.observed_id}).second) {
+    rejects_.record({runtime::RejectReason::kStaleSequence, where + ": already received"}, channels_.sighting());
+    return;
+  }
+  const auto arrived = Clock::now();
+  // Unbounded: nobody resends a sighting, and it is tiny (FusionWorker header).
+  worker_->try_push([this, s, arrived] { sighting_task(s, arrived); }, FusionWorker::Bound::kUnbounded);
+}
+
+void ServerNode::on_outcome(Outcome& outcome) {
+  view_ = std::move(outcome.view);
+  switch (outcome.kind) {
+    case Outcome::Kind::kWrite:
+      write_pending_ = false;
+      return;
+    case Outcome::Kind::kSighting:
+      if (outcome.rejection) {
+        rejects_.record(*outcome.rejection, channels_.sighting());
+      } else {
+        ++stats_.sightings_applied;
+      }
+      break;
+    case Outcome::Kind::kLocalMap: {
+      RobotSeqs& seqs = seqs_[outcome.robot_id];
+      seqs.waiting.erase(outcome.seq);
+      if (outcome.rejection) {
+        rejects_.record(*outcome.rejection, channels_.local_map());
+      } else if (outcome.queued_in_map) {
+        seqs.applied.insert(outcome.seq);
+        publish_ack(outcome.robot_id, outcome.seq, runtime::LocalMapAck::Status::kQueued);
+      }
+      break;
+    }
+  }
+  for (const auto& [robot_id, seq] : outcome.fused) {
+    seqs_[robot_id].applied.insert(seq);
+    publish_ack(robot_id, seq, runtime::LocalMapAck::Status::kFused);
+  }
+  if (!outcome.fused.empty()) {
+    publish_frames();
+    publish_global_map_rate_limited();
+  }
+}
+
+// ---- worker thread ------------------------------------------------------------
+
+void ServerNode::fuse_task(LocalMapSnapshot snapshot, Clock::time_point arrived) {
+  const double wait_ms = ms_since(arrived);
+  auto outcome = std::make_shared<Outcome>();
+  outcome->kind = Outcome::Kind::kLocalMap;
+  outcome->robot_id = snapshot.robot_id;
+  outcome->seq = snapshot.seq;
+  try {
+    const std::vector<fusion::FusionReport> reports = map_.fuse(snapshot);
+    book_.add(snapshot);  // only what the map accepted
+    latest_utime_ = std::max(latest_utime_, snapshot.last_utime);
+    record_fusions(reports, wait_ms);
+    for (const auto& r : reports) outcome->fused.emplace_back(r.robot_id, r.seq);
+    outcome->queued_in_map = map_.is_queued(snapshot.robot_id, snapshot.seq);
+  } catch (const std::invalid_argument& e) {
+    outcome->rejection = runtime::Rejection{reason_of(e.what()), e.what()};
+  }
+  outcome->view = make_view();
+  post_outcome(std::move(outcome));
+}
+
+void ServerNode::sighting_task(const runtime::Sighting& sighting, Clock::time_point arrived) {
+  const double wait_ms = ms_since(arrived);
+  auto outcome = std::make_shared<Outcome>();
+  outcome->kind = Outcome::Kind::kSighting;
+  outcome->robot_id = sighting.observed_id;
+  try {
+    const fusion::SightingResult result = map_.add_sighting(to_fusion(sighting));
+    record_fusions(result.fused, wait_ms);
+    for (const auto& r : result.fused) outcome->fused.emplace_back(r.robot_id, r.seq);
+    sightings_.push_back({sighting, sighting_status_name(result.status)});
+  } catch (const std::invalid_argument& e) {
+    outcome->rejection = runtime::Rejection{reason_of(e.what()), e.what()};
+    sightings_.push_back({sighting, "rejected"});
+  }
+  outcome->view = make_view();
+  post_outcome(std::move(outcome));
+}
+
+void ServerNode::post_outcome(std::shared_ptr<Outcome> outcome) {
+  // The loop may outlive this node (or keep running after shutdown()): the
+  // weak token makes a late outcome a no-op instead of a use after free.
+  loop_.post([this, alive = std::weak_ptr<bool>(alive_), outcome = std::move(outcome)] {
+    if (alive.lock() && !stopped_) on_outcome(*outcome);
+  });
+}
+
+void ServerNode::record_fusions(const std::vector<fusion::FusionReport>& reports, double queue_wait_ms) {
+  for (const auto& r : reports) {
+    fusions_.push_back({r, queue_wait_ms});
+    fusion_ms_sum_ += r.time.total_s * 1e3;
+    last_covariance_ok_ = health_ok(r);
+    covariance_always_ok_ = covariance_always_ok_ && last_covariance_ok_;
+    if (r.min_ldlt_pivot) {
+      last_min_pivot_ = r.min_ldlt_pivot;
+    } else if (r.min_eigenvalue) {
+      last_min_pivot_ = r.min_eigenvalue;
+    }
+  }
+}
+
+MapView ServerNode::make_view() const {
+  MapView v;
+  v.counts = map_.counts();
+  v.fusion_count = static_cast<std::int64_t>(fusions_.size());
+  v.latest_utime = latest_utime_;
+  v.frames.utime = latest_utime_;
+  v.frames.fusion_count = v.fusion_count;
+  for (const fusion::CorrectedFrame& f : map_.corrected_frames()) {
+    runtime::CorrectedFrame c;
+    c.robot_id = f.robot_id;
+    c.last_applied_seq = f.seq - 1;  // L_r is the origin of local map f.seq
+    c.x_WL = f.x_WL;
+    c.covariance = 0.5 * (f.covariance + f.covariance.transpose());
+    v.frames.frames.push_back(c);
+  }
+  for (const fusion::SegmentView& s : map_.segments()) {
+    v.endpoints.push_back({static_cast<float>(s.start_W.x()), static_cast<float>(s.start_W.y()),
+                           static_cast<float>(s.end_W.x()), static_cast<float>(s.end_W.y())});
+  }
+  if (!fusions_.empty()) {
+    v.last_fusion_ms = fusions_.back().report.time.total_s * 1e3;
+    v.mean_fusion_ms = fusion_ms_sum_ / static_cast<double>(fusions_.size());
+  }
+  v.covariance_ok = last_covariance_ok_;
+  v.min_pivot = last_min_pivot_;
+  return v;
+}
+
+bool ServerNode::write_outputs(const LoopSnapshot& loop_side) const {
+  try {
+    std::filesystem::create_directories(options_.out_dir);
+    // trajectories/robotN.txt, trajectory.txt (all robots, time order), map.json, map.svg.
+    const std::map<int, std::vector<StampedPose>> trajectories = book_.final_trajectories(map_);
+    std::filesystem::create_directories(options_.out_dir / "trajectories");
+    std::vector<StampedPose> all;
+    std::vector<fusion::MapTrajectory> drawn;
+    for (const auto& [robot_id, poses] : trajectories) {
+      io::write_trajectory(options_.out_dir / "trajectories" / ("robot" + std::to_string(robot_id) + ".txt"), poses);
+      all.insert(all.end(), poses.begin(), poses.end());
+      fusion::MapTrajectory t;
+      t.label = "robot " + std::to_string(robot_id);
+      for (const StampedPose& p : poses) t.poses.push_back(p.pose);
+      drawn.push_back(std::move(t));
+    }
+    std::stable_sort(all.begin(), all.end(),
+                     [](const StampedPose& a, const StampedPose& b) { return a.utime < b.utime; });
+    io::write_trajectory(options_.out_dir / "trajectory.txt", all);
+    fusion::write_map_json(map_, options_.out_dir / "map.json");
+    fusion::write_map_svg(map_, options_.out_dir / "map.svg", drawn);
+
+    json report;
+    report["source"] = "lmf-server";
+    report["map"] = counts_json(map_.counts());
+    report["global_covariance_always_ok"] = covariance_always_ok_;
+    std::vector<double> fusion_ms;
+    std::vector<double> wait_ms;
+    json fusions = json::array();
+    for (const FusionRecord& f : fusions_) {
+      fusions.push_back(report_json(f.report, f.queue_wait_ms));
+      fusion_ms.push_back(f.report.time.total_s * 1e3);
+      wait_ms.push_back(f.queue_wait_ms);
+    }
+    report["fusion_timing"] = timing_json(std::move(fusion_ms));
+    report["queue_wait_timing"] = timing_json(std::move(wait_ms));
+    report["fusions"] = std::move(fusions);
+    json sightings = json::array();
+    for (const SightingRecord& s : sightings_) {
+      sightings.push_back({{"utime", s.sighting.utime},
+                           {"observer", s.sighting.observer_id},
+                           {"observed", s.sighting.observed_id},
+                           {"status", s.status}});
+    }
+    report["sightings"] = std::move(sightings);
+    json robots = json::array();
+    for (int robot_id : map_.robots()) {
+      std::size_t fused = 0;
+      for (const FusionRecord& f : fusions_) fused += f.report.robot_id == robot_id ? 1 : 0;
+      const auto t = trajectories.find(robot_id);
+      robots.push_back({{"robot_id", robot_id},
+                        {"local_maps_fused", fused},
+                        {"trajectory_poses", t == trajectories.end() ? 0 : t->second.size()}});
+    }
+    report["robots"] = std::move(robots);
+    const ServerStats& s = loop_side.stats;
+    report["messages"] = {{"local_maps_received", s.local_maps_received},
+                          {"sightings_received", s.sightings_received},
+                          {"sightings_applied", s.sightings_applied},
+                          {"acks_fused", s.acks_fused},
+                          {"acks_duplicate", s.acks_duplicate},
+                          {"acks_queued", s.acks_queued},
+                          {"resends_while_waiting", s.resends_while_waiting},
+                          {"deferred_queue_full", s.deferred_queue_full},
+                          {"discarded_at_stop", s.discarded_at_stop}};
+    json rejects = json::object();
+    for (const auto& [name, count] : loop_side.rejects) rejects[name] = count;
+    report["rejects"] = std::move(rejects);
+
+    const auto file = options_.out_dir / "report.json";
+    std::ofstream out(file);
+    out << report.dump(2) << '\n';
+    if (!out) throw std::runtime_error(file.string() + ": cannot write");
+    return true;
+  } catch (const std::exception& e) {
+    std::cerr << "lmf-server: writing outputs into " << options_.out_dir << " failed: " << e.what() << '\n';
+    return false;
+  }
+}
+
+// ---- loop thread: writing, publishing -------------------------------------------
+
+void ServerNode::request_write() {
+  if (stopped_ || write_pending_) return;
+  write_pending_ = true;
+  const LoopSnapshot loop_side = loop_snapshot();
+  worker_->try_push(
+      [this, loop_side] {
+        write_outputs(loop_side);
+        auto outcome = std::make_shared<Outcome>();
+        outcome->kind = Outcome::Kind::kWrite;
+        outcome->view = make_view();
+        post_outcome(std::move(outcome));
+      },
+      FusionWorker::Bound::kUnbounded);
+}
+
+bool ServerNode::shutdown(bool write_outputs_now) {
+  if (stopped_) return true;
+  stopped_ = true;
+  for (int id : timers_) loop_.cancel(id);
+  timers_.clear();
+  if (map_timer_) loop_.cancel(*map_timer_);
+  map_timer_.reset();
+  for (int id : subscriptions_) bus_.unsubscribe(id);
+  subscriptions_.clear();
+  if (worker_) {
+    stats_.discarded_at_stop += static_cast<std::int64_t>(worker_->stop());
+    stats_.worker_errors = worker_->task_errors();
+  }
+  // The worker is joined: its state is ours now.
+  if (!write_outputs_now) return true;
+  return write_outputs(loop_snapshot());
+}
+
+ServerNode::LoopSnapshot ServerNode::loop_snapshot() const {
+  LoopSnapshot s;
+  s.stats = stats_;
+  if (worker_) s.stats.worker_errors = worker_->task_errors();
+  s.rejects = reject_counts();
+  return s;
+}
+
+std::vector<std::pair<std::string, std::int64_t>> ServerNode::reject_counts() const {
+  std::map<std::string, std::int64_t> merged;
+  for (const auto& [name, count] : rejects_.nonzero()) merged[name] += count;
+  for (const auto& [name, count] : bus_.rejects().nonzero()) merged[name] += count;
+  return {merged.begin(), merged.end()};
+}
+
+void ServerNode::publish_ack(int robot_id, std::int64_t seq, runtime::LocalMapAck::Status status) {
+  runtime::LocalMapAck ack;
+  ack.utime = wall_utime();
+  ack.robot_id = robot_id;
+  ack.seq = seq;
+  ack.status = status;
+  switch (status) {
+    case runtime::LocalMapAck::Status::kFused: ++stats_.acks_fused; break;
+    case runtime::LocalMapAck::Status::kDuplicate: ++stats_.acks_duplicate; break;
+    case runtime::LocalMapAck::Status::kQueued: ++stats_.acks_queued; break;
+  }
+  bus_.publish(channels_.local_map_ack(), runtime::to_message(ack));
+}
+
+void ServerNode::publish_frames() {
+  if (stopped_) return;
+  auto msg = runtime::to_message(view_.frames);
+  if (!msg) {
+    std::cerr << "lmf-server: corrected frames not published: " << msg.rejection().describe() << '\n';
+    return;
+  }
+  bus_.publish(channels_.corrected_frames(), msg.value());
+}
+
+lmf::global_map_t ServerNode::make_global_map() const {
+  lmf::global_map_t msg;
+  msg.utime = view_.latest_utime;
+  msg.fusion_count = view_.fusion_count;
+  msg.num_submaps = view_.counts.submaps;
+  msg.num_graph_edges = view_.counts.graph_edges;
+  msg.num_segments = static_cast<std::int32_t>(view_.endpoints.size());
+  msg.endpoints.reserve(view_.endpoints.size());
+  for (const auto& e : view_.endpoints) msg.endpoints.push_back({e[0], e[1], e[2], e[3]});
+  return msg;
+}
+
+void ServerNode::publish_global_map() {
+  if (stopped_) return;
+  last_map_publish_ = Clock::now();
+  bus_.publish(channels_.global_map(), make_global_map());
+}
+
+void ServerNode::publish_global_map_rate_limited() {
+  const auto since = Clock::now() - last_map_publish_;
+  if (since >= options_.map_min_interval) {
+    publish_global_map();
+    return;
+  }
+  if (map_publish_scheduled_) return;
+  map_publish_scheduled_ = true;
+  const auto delay = std::chrono::duration_cast<std::chrono::milliseconds>(options_.map_min_interval - since) +
+                     std::chrono::milliseconds(1);
+  map_timer_ = loop_.after(delay, [this] {
+    map_publish_scheduled_ = false;
+    map_timer_.reset();
+    publish_global_map();
+  });
+}
+
+lmf::server_status_t ServerNode::make_status() const {
+  lmf::server_status_t msg;
+  msg.utime = wall_utime();
+  msg.num_robots_joined = view_.counts.robots_joined;
+  msg.num_segments = view_.counts.segments;
+  msg.num_submaps = view_.counts.submaps;
+  msg.num_graph_edges = view_.counts.graph_edges;
+  msg.fusions = view_.fusion_count;
+  msg.last_fusion_ms = static_cast<float>(view_.last_fusion_ms);
+  msg.mean_fusion_ms = static_cast<float>(view_.mean_fusion_ms);
+  msg.queue_length = static_cast<std::int32_t>(queue_length());
+  msg.covariance_ok = view_.covariance_ok;
+  msg.min_eigenvalue = view_.min_pivot ? static_cast<float>(*view_.min_pivot) : 0.0f;
+  for (const auto& [name, count] : reject_counts()) {
+    msg.reject_reasons.push_back(name);
+    msg.reject_counts.push_back(count);
+  }
+  msg.num_reject_reasons = static_cast<std::int32_t>(msg.reject_reasons.size());
+  return msg;
+}
+
+void ServerNode::publish_status() {
+  if (stopped_) return;
+  bus_.publish(channels_.server_status(), make_status());
+}
+
+}  // namespace lmf::server

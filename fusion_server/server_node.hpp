@@ -1,0 +1,211 @@
+// The fusion server (DESIGN §1, §5, §7; docs: /work/brief/protocol.md): LCM in,
+// GlobalMap in a background worker, acknowledgements, corrected frames, map
+// summaries and status out, map/trajectory/report files on request and at exit.
+//
+// Receiving a local map (LMF_LOCAL_MAP), on the loop thread:
+//   decode + validate (runtime/convert) -> reject by reason;
+//   robot id >= max_robots               -> reject unknown_robot;
+//   (robot, seq) already applied         -> ack DUPLICATE, count stale_sequence, never re-applied;
+//   (robot, seq) waiting in the worker   -> nothing (its ack follows when it is applied);
+//   worker queue full                    -> nothing: no ack, so the agent resends later;
+//   else queued to the worker, which calls GlobalMap::fuse; an invalid_argument
+//   from it is a counted reject (the map is unchanged). The ack (FUSED, or
+//   QUEUED when the GlobalMap holds it for a robot that has not joined) is sent
+//   on the loop thread once the GlobalMap accepted it. Local maps fused later
+//   (when their robot joins) get a FUSED ack then too.
+// Sightings (LMF_SIGHTING) are validated the same way (unknown robots, a
+// repeated (utime, observer, observed) is stale_sequence) and go through the
+// SAME worker FIFO, so a lockstep replay fuses in lmf-offline's order.
+//
+// Ownership across threads: the GlobalMap, the TrajectoryBook and the fusion
+// records belong to the worker thread (and to the caller of shutdown() once the
+// worker is joined); the loop thread never touches them. After each task the
+// worker posts a MapView (counts, corrected frames, segment end points, timing)
+// back to the loop with EventLoop::post; everything published comes from it.
+//
+// Publications: corrected_frames_t after each fusion and every frames_interval;
+// global_map_t after fusions (at most one per map_min_interval) and every
+// map_interval; server_status_t every status_interval.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <optional>
+#include <set>
+#include <string>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+#include "fusion_server/fusion_worker.hpp"
+#include "lmf/fusion/global_map.hpp"
+#include "lmf/mission/trajectory_book.hpp"
+#include "runtime/bus.hpp"
+#include "runtime/channels.hpp"
+#include "runtime/convert.hpp"
+#include "runtime/event_loop.hpp"
+#include "runtime/messages.hpp"
+#include "runtime/rejection.hpp"
+
+namespace lmf::server {
+
+struct ServerOptions {
+  fusion::GlobalMapConfig global_map;
+  std::filesystem::path out_dir = "out/server";
+  // Joins at start with L = W (zero covariance, local map 0). nullopt: the
+  // first local map received defines W (GlobalMapConfig::first_robot_defines_world).
+  std::optional<int> first_robot = 0;
+  int max_robots = 64;                      // robot ids 0 .. max_robots-1 are known
+  std::size_t queue_capacity = 32;          // local maps waiting for the worker
+  std::chrono::milliseconds status_interval{500};
+  std::chrono::milliseconds frames_interval{1000};
+  std::chrono::milliseconds map_interval{2000};
+  std::chrono::milliseconds map_min_interval{250};  // rate limit of global_map_t after fusions
+  std::chrono::seconds write_interval{0};           // 0: only on request and at shutdown
+  runtime::DecodeLimits limits;
+
+  // Throws std::invalid_argument naming the bad field.
+  void validate() const;
+};
+
+// What the loop thread knows of the map: a copy made by the worker after each task.
+struct MapView {
+  fusion::MapCounts counts;
+  std::int64_t fusion_count = 0;
+  std::int64_t latest_utime = 0;  // newest local map time fused (data time, us)
+  runtime::CorrectedFrames frames;
+  std::vector<std::array<float, 4>> endpoints;  // x1 y1 x2 y2 in W, m
+  double last_fusion_ms = 0.0;
+  double mean_fusion_ms = 0.0;
+  bool covariance_ok = true;                    // the last fusion's health check
+  std::optional<double> min_pivot;              // of the last fusion (LDLT pivot or eigenvalue)
+};
+
+struct ServerStats {
+  std::int64_t acks_fused = 0;
+  std::int64_t acks_duplicate = 0;
+  std::int64_t acks_queued = 0;
+  std::int64_t local_maps_received = 0;  // every LMF_LOCAL_MAP message, good or bad
+  std::int64_t sightings_received = 0;
+  std::int64_t sightings_applied = 0;    // handed to the GlobalMap without error
+  std::int64_t resends_while_waiting = 0;
+  std::int64_t deferred_queue_full = 0;  // not acked because the worker queue was full
+  std::int64_t discarded_at_stop = 0;    // waiting tasks never started (never acked)
+  std::int64_t worker_errors = 0;
+};
+
+class ServerNode {
+ public:
+  // Subscribes, joins the first robot, starts the worker and the timers.
+  // Throws std::invalid_argument for bad options.
+  ServerNode(runtime::Bus& bus, runtime::EventLoop& loop, runtime::Channels channels, ServerOptions options);
+  // shutdown() without writing if it was not called.
+  ~ServerNode();
+  ServerNode(const ServerNode&) = delete;
+  ServerNode& operator=(const ServerNode&) = delete;
+
+  // Queues a write of the outputs behind the tasks already waiting (SIGUSR1,
+  // the write timer). Loop thread.
+  void request_write();
+
+  // Stops taking messages, lets the running fusion finish, discards the tasks
+  // not started (they were never acknowledged), then writes the outputs into
+  // out_dir (if `write_outputs`). Call after the loop stopped. Idempotent.
+  // Returns false if writing failed (the error is on stderr).
+  bool shutdown(bool write_outputs = true);
+
+  // Loop-thread views (tests, status).
+  const MapView& view() const { return view_; }
+  const ServerStats& stats() const { return stats_; }
+  const runtime::RejectCounter& rejects() const { return rejects_; }
+  // Rejections of this node and of the bus (decode failures, handler errors), by name.
+  std::vector<std::pair<std::string, std::int64_t>> reject_counts() const;
+  // Tasks waiting or running in the worker (any thread).
+  bool worker_busy() const { return worker_ && worker_->busy(); }
+  std::size_t queue_length() const { return worker_ ? worker_->waiting() : 0; }
+  const ServerOptions& options() const { return options_; }
+
+  // The message builders, public for tests.
+  lmf::server_status_t make_status() const;
+  lmf::global_map_t make_global_map() const;
+
+ private:
+  // Worker-side results, posted back to the loop.
+  struct Outcome;
+  // Loop-side snapshot of the counters that go into report.json.
+  struct LoopSnapshot {
+    ServerStats stats;
+    std::vector<std::pair<std::string, std::int64_t>> rejects;
+  };
+  // One fusion as recorded for report.json (worker side).
+  struct FusionRecord {
+    fusion::FusionReport report;
+    double queue_wait_ms = 0.0;  // from arrival to the start of the task that fused it
+  };
+  struct SightingRecord {
+    runtime::Sighting sighting;
+    std::string status;
+  };
+
+  void on_local_map(const void* data, std::size_t size);
+  void on_sighting(const void* data, std::size_t size);
+  void on_outcome(Outcome& outcome);
+  void post_outcome(std::shared_ptr<Outcome> outcome);
+
+  // Worker side.
+  void fuse_task(LocalMapSnapshot snapshot, std::chrono::steady_clock::time_point arrived);
+  void sighting_task(const runtime::Sighting& sighting, std::chrono::steady_clock::time_point arrived);
+  void record_fusions(const std::vector<fusion::FusionReport>& reports, double queue_wait_ms);
+  MapView make_view() const;
+  bool write_outputs(const LoopSnapshot& loop_side) const;
+
+  void publish_ack(int robot_id, std::int64_t seq, runtime::LocalMapAck::Status status);
+  void publish_frames();
+  void publish_global_map();
+  void publish_global_map_rate_limited();
+  void publish_status();
+  LoopSnapshot loop_snapshot() const;
+
+  runtime::Bus& bus_;
+  runtime::EventLoop& loop_;
+  runtime::Channels channels_;
+  ServerOptions options_;
+
+  // ---- worker side (see the header comment) ----
+  fusion::GlobalMap map_;
+  mission::TrajectoryBook book_;
+  std::vector<FusionRecord> fusions_;
+  std::vector<SightingRecord> sightings_;
+  double fusion_ms_sum_ = 0.0;
+  bool last_covariance_ok_ = true;
+  bool covariance_always_ok_ = true;
+  std::optional<double> last_min_pivot_;
+  std::int64_t latest_utime_ = 0;
+
+  // ---- loop side ----
+  struct RobotSeqs {
+    std::set<std::int64_t> applied;  // acked FUSED or QUEUED
+    std::set<std::int64_t> waiting;  // in the worker queue
+  };
+  std::map<int, RobotSeqs> seqs_;
+  std::set<std::tuple<std::int64_t, int, int>> sightings_seen_;  // (utime, observer, observed)
+  runtime::RejectCounter rejects_;
+  ServerStats stats_;
+  MapView view_;
+  std::chrono::steady_clock::time_point last_map_publish_{};
+  bool map_publish_scheduled_ = false;
+  std::optional<int> map_timer_;
+  std::shared_ptr<bool> alive_ = std::make_shared<bool>(true);
+  bool write_pending_ = false;
+  bool stopped_ = false;
+  std::vector<int> timers_;
+  std::vector<int> subscriptions_;
+
+  std::unique_ptr<FusionWorker> worker_;  // last: joined first on destruction
+};
+
+}  // namespace lmf::server

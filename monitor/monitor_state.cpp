@@ -1,0 +1,397 @@
+#include "monitor/monitor_state.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <sstream>
+
+#include <Eigen/Core>
+
+#include "lmf/io/svg.hpp"
+
+namespace lmf::monitor {
+namespace {
+
+using nlohmann::json;
+
+// JSON has no NaN/inf: those become null so every line parses.
+json number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+std::string fixed(double v, int decimals) {
+  if (!std::isfinite(v)) return "-";
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, "%.*f", decimals, v);
+  return buffer;
+}
+
+std::string pad_left(const std::string& s, std::size_t width) {
+  return s.size() >= width ? s : std::string(width - s.size(), ' ') + s;
+}
+
+std::string pad_right(const std::string& s, std::size_t width) {
+  return s.size() >= width ? s : s + std::string(width - s.size(), ' ');
+}
+
+// A round tick step giving about `target` ticks over `span`.
+double nice_step(double span, int target) {
+  if (!(span > 0.0)) return 1.0;
+  const double raw = span / target;
+  const double magnitude = std::pow(10.0, std::floor(std::log10(raw)));
+  for (double m : {1.0, 2.0, 5.0, 10.0}) {
+    if (m * magnitude >= raw) return m * magnitude;
+  }
+  return 10.0 * magnitude;
+}
+
+const char* kPalette[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf"};
+
+}  // namespace
+
+RobotRow& MonitorState::robot(int robot_id) {
+  RobotRow& row = robots_[robot_id];
+  row.robot_id = robot_id;
+  return row;
+}
+
+void MonitorState::count_message(const std::string& channel) {
+  ++messages_;
+  ++per_channel_[channel];
+}
+
+void MonitorState::on_rejected(const std::string& reason) { ++rejected_[reason]; }
+
+void MonitorState::on_agent_status(const lmf::agent_status_t& msg, std::int64_t receive_utime) {
+  last_receive_utime_ = std::max(last_receive_utime_, receive_utime);
+  RobotRow& row = robot(msg.robot_id);
+  row.have_status = true;
+  row.joined = msg.joined;
+  row.scans = msg.scans;
+  row.local_map_segments = msg.local_map_segments;
+  row.scan_p50_ms = msg.scan_time_p50_ms;
+  row.scan_p99_ms = msg.scan_time_p99_ms;
+  row.scan_max_ms = msg.scan_time_max_ms;
+  row.maps_shipped = msg.maps_shipped;
+  row.maps_acknowledged = msg.maps_acknowledged;
+  row.covariance_ok = msg.covariance_ok;
+  row.mission_done = msg.mission_done;
+  row.global_pose = Pose2(msg.global_pose.x, msg.global_pose.y, msg.global_pose.phi);
+  row.rejects = 0;
+  for (std::int64_t c : msg.reject_counts) row.rejects += c;
+  row.status_utime = msg.utime;
+  if (msg.window_scans > 0) {
+    windows_[msg.robot_id].push_back({msg.utime, msg.scan_time_max_ms, msg.scan_time_p99_ms, msg.window_scans});
+  }
+}
+
+void MonitorState::on_server_status(const lmf::server_status_t& msg, std::int64_t receive_utime) {
+  last_receive_utime_ = std::max(last_receive_utime_, receive_utime);
+  server_.have_status = true;
+  server_.utime = msg.utime;
+  server_.robots_joined = msg.num_robots_joined;
+  server_.segments = msg.num_segments;
+  server_.submaps = msg.num_submaps;
+  server_.graph_edges = msg.num_graph_edges;
+  server_.fusions = msg.fusions;
+  server_.last_fusion_ms = msg.last_fusion_ms;
+  server_.mean_fusion_ms = msg.mean_fusion_ms;
+  server_.queue_length = msg.queue_length;
+  server_.covariance_ok = msg.covariance_ok;
+  server_.min_eigenvalue = msg.min_eigenvalue;
+  server_.rejects.clear();
+  const std::size_t n = std::min(msg.reject_reasons.size(), msg.reject_counts.size());
+  for (std::size_t i = 0; i < n; ++i) server_.rejects.emplace_back(msg.reject_reasons[i], msg.reject_counts[i]);
+}
+
+void MonitorState::on_global_map(const lmf::global_map_t& msg, std::int64_t receive_utime) {
+  last_receive_utime_ = std::max(last_receive_utime_, receive_utime);
+  GlobalMapSummary summary;
+  summary.utime = msg.utime;
+  summary.fusion_count = msg.fusion_count;
+  summary.submaps = msg.num_submaps;
+  summary.graph_edges = msg.num_graph_edges;
+  for (const auto& e : msg.endpoints) {
+    const std::array<double, 4> p = {e[0], e[1], e[2], e[3]};
+    if (std::all_of(p.begin(), p.end(), [](double v) { return std::isfinite(v); })) summary.endpoints.push_back(p);
+  }
+  global_map_ = std::move(summary);
+  ++global_map_version_;
+}
+
+void MonitorState::on_scan_ack(const lmf::scan_ack_t& msg, std::int64_t receive_utime) {
+  last_receive_utime_ = std::max(last_receive_utime_, receive_utime);
+  RobotRow& row = robot(msg.robot_id);
+  ++row.scan_acks;
+  row.last_scan_seq = std::max(row.last_scan_seq, msg.seq);
+  scan_ack_receipts_[msg.robot_id].push_back(receive_utime);
+}
+
+void MonitorState::on_local_map_ack(const lmf::local_map_ack_t& msg, std::int64_t receive_utime) {
+  last_receive_utime_ = std::max(last_receive_utime_, receive_utime);
+  ++robot(msg.robot_id).local_map_acks;
+}
+
+std::map<int, std::vector<TimingSample>> MonitorState::timing_series() const {
+  std::int64_t t0 = std::numeric_limits<std::int64_t>::max();
+  for (const auto& [id, w] : windows_) {
+    if (!w.empty()) t0 = std::min(t0, w.front().utime);
+  }
+  for (const auto& [id, r] : scan_ack_receipts_) {
+    if (!windows_.count(id) && !r.empty()) t0 = std::min(t0, r.front());
+  }
+  std::map<int, std::vector<TimingSample>> out;
+  for (const auto& [id, w] : windows_) {
+    for (const StatusWindow& s : w) {
+      out[id].push_back({static_cast<double>(s.utime - t0) * 1e-6, s.max_ms, s.p99_ms});
+    }
+  }
+  for (const auto& [id, r] : scan_ack_receipts_) {
+    if (windows_.count(id)) continue;
+    for (std::size_t i = 1; i < r.size(); ++i) {
+      out[id].push_back({static_cast<double>(r[i] - t0) * 1e-6, static_cast<double>(r[i] - r[i - 1]) * 1e-3, -1.0});
+    }
+  }
+  for (auto& [id, samples] : out) {
+    std::stable_sort(samples.begin(), samples.end(),
+                     [](const TimingSample& a, const TimingSample& b) { return a.time_s < b.time_s; });
+  }
+  return out;
+}
+
+json MonitorState::to_json(std::int64_t now_utime) const {
+  json j;
+  j["utime"] = now_utime;
+  j["messages"] = messages_;
+  json channels = json::object();
+  for (const auto& [name, count] : per_channel_) channels[name] = count;
+  j["channels"] = std::move(channels);
+  json rejected = json::object();
+  for (const auto& [name, count] : rejected_) rejected[name] = count;
+  j["rejected"] = std::move(rejected);
+
+  json robots = json::array();
+  for (const auto& [id, r] : robots_) {
+    robots.push_back({{"robot_id", id},
+                      {"have_status", r.have_status},
+                      {"joined", r.joined},
+                      {"local_map_segments", r.local_map_segments},
+                      {"scans", r.scans},
+                      {"scan_p50_ms", number(r.scan_p50_ms)},
+                      {"scan_p99_ms", number(r.scan_p99_ms)},
+                      {"scan_max_ms", number(r.scan_max_ms)},
+                      {"maps_shipped", r.maps_shipped},
+                      {"maps_acknowledged", r.maps_acknowledged},
+                      {"covariance_ok", r.covariance_ok},
+                      {"mission_done", r.mission_done},
+                      {"global_pose", {number(r.global_pose.x), number(r.global_pose.y), number(r.global_pose.phi)}},
+                      {"rejects", r.rejects},
+                      {"scan_acks", r.scan_acks},
+                      {"last_scan_seq", r.last_scan_seq},
+                      {"local_map_acks", r.local_map_acks}});
+  }
+  j["robots"] = std::move(robots);
+
+  if (server_.have_status) {
+    json rejects = json::object();
+    for (const auto& [name, count] : server_.rejects) rejects[name] = count;
+    j["server"] = {{"utime", server_.utime},
+                   {"robots_joined", server_.robots_joined},
+                   {"segments", server_.segments},
+                   {"submaps", server_.submaps},
+                   {"graph_edges", server_.graph_edges},
+                   {"fusions", server_.fusions},
+                   {"last_fusion_ms", number(server_.last_fusion_ms)},
+                   {"mean_fusion_ms", number(server_.mean_fusion_ms)},
+                   {"queue_length", server_.queue_length},
+                   {"covariance_ok", server_.covariance_ok},
+                   {"min_eigenvalue", number(server_.min_eigenvalue)},
+                   {"rejects", std::move(rejects)}};
+  } else {
+    j["server"] = nullptr;
+  }
+  if (global_map_) {
+    j["global_map"] = {{"utime", global_map_->utime},
+                       {"fusion_count", global_map_->fusion_count},
+                       {"segments", global_map_->endpoints.size()},
+                       {"submaps", global_map_->submaps},
+                       {"graph_edges", global_map_->graph_edges}};
+  } else {
+    j["global_map"] = nullptr;
+  }
+  return j;
+}
+
+std::string MonitorState::table(std::int64_t now_utime) const {
+  std::ostringstream out;
+  std::int64_t rejected = 0;
+  for (const auto& [name, count] : rejected_) rejected += count;
+  out << "lmf monitor   messages " << messages_ << "   undecodable " << rejected << "   t "
+      << fixed(static_cast<double>(now_utime) * 1e-6, 1) << " s\n\n";
+
+  out << "ROBOT  JOINED  LM_SEGS     SCANS  P99_MS  MAX_MS  SHIPPED/ACKED  DONE  COV  REJ  GLOBAL POSE x y phi\n";
+  if (robots_.empty()) out << "  (no robot heard yet)\n";
+  for (const auto& [id, r] : robots_) {
+    out << pad_left(std::to_string(id), 5) << "  ";
+    if (!r.have_status) {
+      out << "(no status; scan acks " << r.scan_acks << ", last scan " << r.last_scan_seq << ", map acks "
+          << r.local_map_acks << ")\n";
+      continue;
+    }
+    out << pad_right(r.joined ? "yes" : "no", 6) << "  " << pad_left(std::to_string(r.local_map_segments), 7) << "  "
+        << pad_left(std::to_string(r.scans), 8) << "  " << pad_left(fixed(r.scan_p99_ms, 1), 6) << "  "
+        << pad_left(fixed(r.scan_max_ms, 1), 6) << "  "
+        << pad_left(std::to_string(r.maps_shipped) + "/" + std::to_string(r.maps_acknowledged), 13) << "  "
+        << pad_right(r.mission_done ? "yes" : "no", 4) << "  " << pad_right(r.covariance_ok ? "ok" : "BAD", 3) << "  "
+        << pad_left(std::to_string(r.rejects), 3) << "  " << pad_left(fixed(r.global_pose.x, 2), 8) << ' '
+        << pad_left(fixed(r.global_pose.y, 2), 8) << ' ' << pad_left(fixed(r.global_pose.phi, 3), 6) << '\n';
+  }
+  out << '\n';
+  if (!server_.have_status) {
+    out << "SERVER  (no status heard yet)\n";
+  } else {
+    out << "SERVER  joined " << server_.robots_joined << "  segments " << server_.segments << "  submaps "
+        << server_.submaps << "  graph edges " << server_.graph_edges << "  fusions " << server_.fusions << '\n'
+        << "        fusion last " << fixed(server_.last_fusion_ms, 2) << " ms  mean " << fixed(server_.mean_fusion_ms, 2)
+        << " ms  queue " << server_.queue_length << "  PSD " << (server_.covariance_ok ? "ok" : "FAILED")
+        << " (min pivot " << server_.min_eigenvalue << ")\n"
+        << "        rejects:";
+    if (server_.rejects.empty()) out << " none";
+    for (const auto& [name, count] : server_.rejects) out << ' ' << name << '=' << count;
+    out << '\n';
+  }
+  if (global_map_) {
+    out << "MAP     " << global_map_->endpoints.size() << " segments, " << global_map_->submaps << " submaps, "
+        << global_map_->graph_edges << " graph edges after " << global_map_->fusion_count << " fusions\n";
+  }
+  return out.str();
+}
+
+void MonitorState::write_map_svg(const std::filesystem::path& file) const {
+  io::SvgDocument svg(20.0, 20.0);
+  svg.set_title("lmf global map");
+  svg.begin_group("segments", "segments");
+  io::SvgStyle wall;
+  wall.stroke = "black";
+  wall.stroke_width_px = 2.0;
+  if (global_map_) {
+    for (const auto& e : global_map_->endpoints) {
+      svg.add_line(Eigen::Vector2d(e[0], e[1]), Eigen::Vector2d(e[2], e[3]), wall);
+    }
+  }
+  svg.end_group();
+  svg.begin_group("robots", "robots");
+  std::size_t colour = 0;
+  for (const auto& [id, r] : robots_) {
+    if (!r.have_status || !r.joined) continue;
+    io::SvgStyle dot;
+    dot.stroke = "none";
+    dot.fill = kPalette[colour++ % std::size(kPalette)];
+    const Eigen::Vector2d p(r.global_pose.x, r.global_pose.y);
+    svg.add_dot(p, 4.0, dot);
+    io::SvgTextStyle label;
+    label.color = dot.fill;
+    svg.add_text(p + Eigen::Vector2d(0.3, 0.3), "robot " + std::to_string(id), label);
+  }
+  svg.end_group();
+  svg.add_scale_bar();
+  svg.write(file);
+}
+
+void MonitorState::write_timing_svg(const std::filesystem::path& file) const {
+  const auto series = timing_series();
+  double t_max = 1.0;
+  double v_max = kRealTimeBoundMs * 1.25;
+  for (const auto& [id, samples] : series) {
+    for (const TimingSample& s : samples) {
+      t_max = std::max(t_max, s.time_s);
+      if (std::isfinite(s.value_ms)) v_max = std::max(v_max, s.value_ms * 1.05);
+    }
+  }
+  // x: seconds, y: milliseconds, scaled to a ~900 x 400 px plot.
+  io::SvgDocument svg(1.0, 40.0);
+  svg.set_scale(900.0 / t_max, 400.0 / v_max);
+  svg.set_title("Elapsed time between consecutive updates (paper Fig. 8)");
+  svg.set_bounds(Eigen::Vector2d(-0.08 * t_max, -0.12 * v_max), Eigen::Vector2d(1.02 * t_max, 1.08 * v_max));
+
+  io::SvgStyle axis;
+  axis.stroke = "#444";
+  io::SvgStyle grid;
+  grid.stroke = "#ddd";
+  io::SvgTextStyle tick;
+  tick.size_px = 10.0;
+  tick.anchor = "middle";
+  svg.begin_group("axes", "axes");
+  svg.add_line(Eigen::Vector2d(0, 0), Eigen::Vector2d(t_max, 0), axis);
+  svg.add_line(Eigen::Vector2d(0, 0), Eigen::Vector2d(0, v_max), axis);
+  const double t_step = nice_step(t_max, 8);
+  for (double t = 0.0; t <= t_max + 1e-9; t += t_step) {
+    svg.add_line(Eigen::Vector2d(t, 0), Eigen::Vector2d(t, v_max), grid);
+    svg.add_text(Eigen::Vector2d(t, -0.05 * v_max), fixed(t, t_step < 1.0 ? 1 : 0), tick);
+  }
+  const double v_step = nice_step(v_max, 6);
+  io::SvgTextStyle ytick = tick;
+  ytick.anchor = "end";
+  for (double v = 0.0; v <= v_max + 1e-9; v += v_step) {
+    svg.add_line(Eigen::Vector2d(0, v), Eigen::Vector2d(t_max, v), grid);
+    svg.add_text(Eigen::Vector2d(-0.01 * t_max, v), fixed(v, 0), ytick);
+  }
+  io::SvgTextStyle label;
+  label.size_px = 12.0;
+  label.anchor = "middle";
+  svg.add_text(Eigen::Vector2d(0.5 * t_max, -0.1 * v_max), "mission time (s)", label);
+  label.anchor = "start";
+  svg.add_text(Eigen::Vector2d(-0.07 * t_max, 1.04 * v_max), "update time (ms)", label);
+  svg.end_group();
+
+  io::SvgStyle bound;
+  bound.stroke = "red";
+  bound.stroke_width_px = 1.5;
+  bound.dash_px = "8 4";
+  svg.begin_group("200 ms bound", "bound");
+  svg.add_line(Eigen::Vector2d(0, kRealTimeBoundMs), Eigen::Vector2d(t_max, kRealTimeBoundMs), bound);
+  io::SvgTextStyle bound_label;
+  bound_label.color = "red";
+  bound_label.anchor = "end";
+  svg.add_text(Eigen::Vector2d(t_max, kRealTimeBoundMs + 0.02 * v_max), "200 ms (5 Hz laser)", bound_label);
+  svg.end_group();
+
+  std::size_t colour = 0;
+  double legend_y = 1.0 * v_max;
+  for (const auto& [id, samples] : series) {
+    const std::string c = kPalette[colour++ % std::size(kPalette)];
+    svg.begin_group("robot " + std::to_string(id), "robot" + std::to_string(id));
+    std::vector<Eigen::Vector2d> line;
+    std::vector<Eigen::Vector2d> p99;
+    for (const TimingSample& s : samples) {
+      if (std::isfinite(s.value_ms)) line.emplace_back(s.time_s, s.value_ms);
+      if (s.p99_ms >= 0.0 && std::isfinite(s.p99_ms)) p99.emplace_back(s.time_s, s.p99_ms);
+    }
+    io::SvgStyle style;
+    style.stroke = c;
+    if (line.size() >= 2) svg.add_polyline(line, style);
+    if (line.size() == 1) {
+      io::SvgStyle dot;
+      dot.stroke = "none";
+      dot.fill = c;
+      svg.add_dot(line.front(), 2.0, dot);
+    }
+    if (p99.size() >= 2) {
+      style.dash_px = "2 2";
+      style.stroke_opacity = 0.6;
+      svg.add_polyline(p99, style);
+    }
+    io::SvgTextStyle legend;
+    legend.color = c;
+    legend.anchor = "end";
+    const bool from_status = !samples.empty() && samples.front().p99_ms >= 0.0;
+    svg.add_text(Eigen::Vector2d(t_max, legend_y),
+                 "robot " + std::to_string(id) +
+                     (from_status ? ": max per status window (dashed: p99)" : ": time between scan acks"),
+                 legend);
+    legend_y -= 0.05 * v_max;
+    svg.end_group();
+  }
+  svg.write(file);
+}
+
+}  // namespace lmf::monitor

@@ -1,0 +1,148 @@
+// What lmf-monitor knows of the system, built only from messages (DESIGN §1:
+// "a monitor shows the whole system as a refreshing text view or JSON lines,
+// live or from an lcm-logger capture, and draws the map"). No LCM I/O here:
+// MonitorNode feeds it decoded messages with their receive time (wall clock
+// live, the event timestamp from a log), so the same code serves both.
+//
+// Renders: a text table (robots, then server), one JSON object with the same
+// fields (NaN or infinite numbers become null, so every line parses), the
+// global map as SVG, and the paper's Fig. 8 as SVG: per robot, the time taken
+// by the updates over the mission with the 200 ms real-time bound of a 5 Hz
+// laser marked. Its source, per robot: the agent_status_t windows (largest and
+// p99 per-scan time of each window) when the robot sent any, else the time
+// between consecutive scan_ack_t receptions.
+//
+// Not thread-safe (the monitor has one thread).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "lmf/agent_status_t.hpp"
+#include "lmf/geometry/pose2.hpp"
+#include "lmf/global_map_t.hpp"
+#include "lmf/local_map_ack_t.hpp"
+#include "lmf/scan_ack_t.hpp"
+#include "lmf/server_status_t.hpp"
+
+namespace lmf::monitor {
+
+// The real-time bound of a 5 Hz laser (paper §IV: "less than 200 ms").
+inline constexpr double kRealTimeBoundMs = 200.0;
+
+struct RobotRow {
+  int robot_id = 0;
+  bool have_status = false;
+  bool joined = false;
+  std::int64_t scans = 0;
+  int local_map_segments = 0;
+  double scan_p50_ms = 0.0;
+  double scan_p99_ms = 0.0;
+  double scan_max_ms = 0.0;
+  std::int64_t maps_shipped = 0;
+  std::int64_t maps_acknowledged = 0;
+  bool covariance_ok = true;
+  bool mission_done = false;
+  Pose2 global_pose;
+  std::int64_t rejects = 0;
+  std::int64_t status_utime = 0;
+  std::int64_t scan_acks = 0;        // scan_ack_t seen
+  std::int64_t last_scan_seq = -1;   // from scan_ack_t
+  std::int64_t local_map_acks = 0;   // local_map_ack_t seen for this robot
+};
+
+struct ServerRow {
+  bool have_status = false;
+  std::int64_t utime = 0;
+  int robots_joined = 0;
+  int segments = 0;
+  int submaps = 0;
+  int graph_edges = 0;
+  std::int64_t fusions = 0;
+  double last_fusion_ms = 0.0;
+  double mean_fusion_ms = 0.0;
+  int queue_length = 0;
+  bool covariance_ok = true;
+  double min_eigenvalue = 0.0;
+  std::vector<std::pair<std::string, std::int64_t>> rejects;
+};
+
+// One point of the timing plot.
+struct TimingSample {
+  double time_s = 0.0;    // since the first sample of any robot
+  double value_ms = 0.0;  // largest per-scan time of a window, or gap between acks
+  double p99_ms = -1.0;   // < 0 when unknown (scan_ack source)
+};
+
+class MonitorState {
+ public:
+  // receive_utime: when the message arrived (us); used for the scan-ack gaps.
+  void on_agent_status(const lmf::agent_status_t& msg, std::int64_t receive_utime);
+  void on_server_status(const lmf::server_status_t& msg, std::int64_t receive_utime);
+  void on_global_map(const lmf::global_map_t& msg, std::int64_t receive_utime);
+  void on_scan_ack(const lmf::scan_ack_t& msg, std::int64_t receive_utime);
+  void on_local_map_ack(const lmf::local_map_ack_t& msg, std::int64_t receive_utime);
+  // A message on `channel` that did not decode (named by reason).
+  void on_rejected(const std::string& reason);
+  void count_message(const std::string& channel);
+
+  const std::map<int, RobotRow>& robots() const { return robots_; }
+  const ServerRow& server() const { return server_; }
+  bool have_global_map() const { return global_map_.has_value(); }
+  // Bumped by every global_map_t (lets the node write the SVG only when it changed).
+  std::int64_t global_map_version() const { return global_map_version_; }
+  std::int64_t messages() const { return messages_; }
+  std::int64_t last_receive_utime() const { return last_receive_utime_; }
+
+  // Per robot, time-ordered samples for the timing plot (see header).
+  std::map<int, std::vector<TimingSample>> timing_series() const;
+
+  // One object: {"utime", "messages", "rejected", "robots": [...], "server": {...} | null,
+  // "global_map": {...} | null}.
+  nlohmann::json to_json(std::int64_t now_utime) const;
+  // The text view (fixed-width table), ending with a newline.
+  std::string table(std::int64_t now_utime) const;
+
+  // Throw std::runtime_error when the file cannot be written; write_map_svg
+  // draws an empty map before any global_map_t.
+  void write_map_svg(const std::filesystem::path& file) const;
+  void write_timing_svg(const std::filesystem::path& file) const;
+
+ private:
+  struct StatusWindow {
+    std::int64_t utime = 0;
+    double max_ms = 0.0;
+    double p99_ms = 0.0;
+    int window_scans = 0;
+  };
+  struct GlobalMapSummary {
+    std::int64_t utime = 0;
+    std::int64_t fusion_count = 0;
+    int submaps = 0;
+    int graph_edges = 0;
+    std::vector<std::array<double, 4>> endpoints;
+  };
+
+  RobotRow& robot(int robot_id);
+
+  std::map<int, RobotRow> robots_;
+  ServerRow server_;
+  std::optional<GlobalMapSummary> global_map_;
+  std::int64_t global_map_version_ = 0;
+  std::map<int, std::vector<StatusWindow>> windows_;            // per robot, from agent_status_t
+  std::map<int, std::vector<std::int64_t>> scan_ack_receipts_;  // per robot, receive times (us)
+  std::map<std::string, std::int64_t> rejected_;
+  std::map<std::string, std::int64_t> per_channel_;
+  std::int64_t messages_ = 0;
+  std::int64_t last_receive_utime_ = 0;
+};
+
+}  // namespace lmf::monitor
