@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <stdexcept>
 #include <string>
@@ -50,12 +51,14 @@ std::string covariance_problem(const Eigen::MatrixXd& P, double tolerance) {
   const double scale = std::max(1.0, P.diagonal().cwiseAbs().maxCoeff());
   const double asymmetry = (P - P.transpose()).cwiseAbs().maxCoeff();
   if (asymmetry > tolerance * scale) return "is not symmetric (max |P - P^T| = " + std::to_string(asymmetry) + ")";
+  // PSD within tolerance <=> P + tolerance·scale·I is positive definite: one
+  // Cholesky (O(n³/6)) instead of an eigen-decomposition, which is only run to
+  // say by how much when the test fails.
+  Eigen::MatrixXd shifted = 0.5 * (P + P.transpose());
+  shifted.diagonal().array() += std::max(tolerance * scale, std::numeric_limits<double>::min());
+  if (Eigen::LLT<Eigen::MatrixXd>(shifted).info() == Eigen::Success) return "";
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(0.5 * (P + P.transpose()), Eigen::EigenvaluesOnly);
-  const double smallest = es.eigenvalues().minCoeff();
-  if (smallest < -tolerance * scale) {
-    return "is not positive semidefinite (smallest eigenvalue " + std::to_string(smallest) + ")";
-  }
-  return "";
+  return "is not positive semidefinite (smallest eigenvalue " + std::to_string(es.eigenvalues().minCoeff()) + ")";
 }
 
 // Chi2 test of an innovation through the careful inversion (eq. 8, DESIGN §6).
@@ -86,10 +89,9 @@ constexpr double kPerfectInnovationTolerance = 1e-6;
 Chi2Result chi2_test(const GlobalState& state, const spmap::ImplicitMeasurement& m, Chi2Table& chi2,
                      double relative_tolerance, double absolute_floor) {
   Chi2Result r;
-  const std::vector<spmap::ImplicitMeasurement> one{m};
-  const double scale = std::max(state.reference_scale(one), absolute_floor / relative_tolerance);
-  const spmap::CarefulInverse ci =
-      spmap::careful_inverse(state.innovation_covariance(one), relative_tolerance, scale);
+  const GlobalState::Innovation in = state.innovation({m});
+  const double scale = std::max(in.reference_scale, absolute_floor / relative_tolerance);
+  const spmap::CarefulInverse ci = spmap::careful_inverse(in.S, relative_tolerance, scale);
   const auto k = static_cast<Eigen::Index>(ci.kept.size());
   if (k == 0) {
     r.passed = m.h.cwiseAbs().maxCoeff() <= kPerfectInnovationTolerance;
@@ -103,40 +105,27 @@ Chi2Result chi2_test(const GlobalState& state, const spmap::ImplicitMeasurement&
   return r;
 }
 
-// Conservative standard deviations of an entity's pose as seen from W, for the
-// gate: standard deviations add (|cov| ≤ σa σb), so correlations never make the
-// gate narrower than the relative uncertainty.
-struct GateSigma {
-  double angle = 0.0;     // rad
-  double position = 0.0;  // m, at the segment's midpoint
-};
-
-GateSigma frame_sigma(const GlobalState& state, EntityId frame) {
-  const Eigen::MatrixXd P = state.block(frame, frame);
-  return {std::sqrt(std::max(0.0, P(2, 2))), std::sqrt(std::max(0.0, P(0, 0) + P(1, 1)))};
-}
-
-GateSigma segment_sigma(const GlobalState& state, const Entity& segment, const GateSigma& parent) {
-  const Eigen::MatrixXd P = state.block(segment.id, segment.id);
-  const double lever = std::hypot(segment.location.x, segment.location.y);
-  return {parent.angle + std::sqrt(std::max(0.0, P(1, 1))),
-          parent.position + parent.angle * lever + std::sqrt(std::max(0.0, P(0, 0)))};
-}
-
-// Precomputed world pose of a segment for the gate.
-struct GateEntry {
+// A segment as the gate sees it: midpoint and direction in its parent frame,
+// and the standard deviations of its own (lateral, angular) error.
+struct GateSegment {
   EntityId id = 0;
-  double x = 0.0;
-  double y = 0.0;
-  double phi = 0.0;
-  double c = 1.0;
+  Pose2 location;  // in the parent frame
+  double c = 1.0;  // cos, sin of location.phi
   double s = 0.0;
   double half_length = 0.0;
-  GateSigma sigma;
+  double sigma_lateral = 0.0;  // m
+  double sigma_angle = 0.0;    // rad
 };
 
-GateEntry gate_entry(EntityId id, const Pose2& x_WS, double length, const GateSigma& sigma) {
-  return {id, x_WS.x, x_WS.y, x_WS.phi, std::cos(x_WS.phi), std::sin(x_WS.phi), 0.5 * length, sigma};
+GateSegment gate_segment(const GlobalState& state, const Entity& e) {
+  const Eigen::MatrixXd P = state.block(e.id, e.id);
+  return {e.id,
+          e.location,
+          std::cos(e.location.phi),
+          std::sin(e.location.phi),
+          0.5 * e.length_m,
+          std::sqrt(std::max(0.0, P(0, 0))),
+          std::sqrt(std::max(0.0, P(1, 1)))};
 }
 
 // Union-find over global segment ids (segments that matched one local segment).
@@ -573,24 +562,20 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
   // P⁻ = [[P, 0], [0, P_Mr]]; robot and local segments are children of L_r.
   const std::size_t k = s.segments.size();
   const auto k_rows = static_cast<Eigen::Index>(2 * k);
-  state_.reserve(state_.dimension() + 3 + k_rows);
   std::vector<EntityId> local(k);
   EntityId R = 0;
+  std::vector<GlobalState::NewEntity> additions;
+  if (!anchored) additions.push_back({EntityKind::kRobot, s.x_LR, L, 0.0});
+  for (const SegmentEstimate& seg : s.segments) additions.push_back({EntityKind::kSegment, seg.location, L, seg.length_m});
+  const std::vector<EntityId> added = state_.add_many(additions);
+  std::copy(added.end() - static_cast<std::ptrdiff_t>(k), added.end(), local.begin());
   if (!anchored) {
-    R = state_.add(EntityKind::kRobot, s.x_LR, L);
-    for (std::size_t j = 0; j < k; ++j) {
-      local[j] = state_.add(EntityKind::kSegment, s.segments[j].location, L, s.segments[j].length_m);
-    }
-    std::vector<EntityId> ids{R};
-    ids.insert(ids.end(), local.begin(), local.end());
-    state_.set_marginal(ids, s.covariance);
+    R = added.front();
+    state_.set_marginal(added, s.covariance);
   } else {
     // The robot is already in the state (it defined L_r); the segments join
     // conditioned on it: p_S = A p_R + w, A = P_SR P_RR⁺, Cov(w) = P_SS − A P_RS.
     R = *slot.robot;
-    for (std::size_t j = 0; j < k; ++j) {
-      local[j] = state_.add(EntityKind::kSegment, s.segments[j].location, L, s.segments[j].length_m);
-    }
     const Eigen::MatrixXd P_RR = s.covariance.topLeftCorner(3, 3);
     const Eigen::MatrixXd P_SR = s.covariance.bottomLeftCorner(k_rows, 3);
     const spmap::CarefulInverse ci = spmap::careful_inverse(P_RR, rel);
@@ -610,65 +595,79 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
   }
   rep.time.augment_s = clock.lap();
 
-  // (2) Implicit measurements, eq. (12). A cheap geometric gate in W first, so
-  // the chi2 test only sees plausible pairs.
-  std::unordered_map<EntityId, GateSigma> frame_sigmas;
-  auto sigma_of_frame = [&](EntityId f) {
-    auto it = frame_sigmas.find(f);
-    if (it == frame_sigmas.end()) it = frame_sigmas.emplace(f, frame_sigma(state_, f)).first;
-    return it->second;
-  };
-  std::unordered_map<EntityId, Pose2> frame_poses;
-  std::vector<GateEntry> globals;
+  // (2) Implicit measurements, eq. (12). A cheap geometric gate first, so the
+  // chi2 test only sees plausible pairs. It works per submap F_n in F_n's frame
+  // with the RELATIVE covariance of L_r and F_n (their absolute uncertainty
+  // grows without bound in a large map while the relative one stays small);
+  // standard deviations of independent-looking parts are added (|cov| <= σa σb),
+  // so the gate is never narrower than the chi2 test would need.
+  std::vector<EntityId> submap_order;
+  std::unordered_map<EntityId, std::vector<GateSegment>> by_submap;
   for (const Entity& e : state_.entities()) {
-    if (e.kind != EntityKind::kSegment || e.parent == L || !e.parent) continue;
-    auto it = frame_poses.find(*e.parent);
-    if (it == frame_poses.end()) it = frame_poses.emplace(*e.parent, state_.root_location(*e.parent)).first;
-    globals.push_back(gate_entry(e.id, compose(it->second, e.location), e.length_m,
-                                 segment_sigma(state_, e, sigma_of_frame(*e.parent))));
+    if (e.kind != EntityKind::kSegment || !e.parent || *e.parent == L) continue;
+    auto [it, inserted] = by_submap.try_emplace(*e.parent);
+    if (inserted) submap_order.push_back(*e.parent);
+    it->second.push_back(gate_segment(state_, e));
   }
+  std::vector<GateSegment> locals;
+  for (std::size_t j = 0; j < k; ++j) locals.push_back(gate_segment(state_, state_.entity(local[j])));
   const Pose2 x_WL = state_.root_location(L);
-  const GateSigma sigma_L = sigma_of_frame(L);
-  std::vector<GateEntry> locals;
-  for (std::size_t j = 0; j < k; ++j) {
-    const Entity& e = state_.entity(local[j]);
-    locals.push_back(gate_entry(e.id, compose(x_WL, e.location), e.length_m, segment_sigma(state_, e, sigma_L)));
-  }
-  rep.pairs_considered = static_cast<std::int64_t>(globals.size() * locals.size());
   const double gs = config_.gate_sigmas;
-  std::vector<std::pair<std::size_t, std::size_t>> gated;  // (global index, local index)
-  for (std::size_t j = 0; j < locals.size(); ++j) {
-    const GateEntry& l = locals[j];
-    for (std::size_t i = 0; i < globals.size(); ++i) {
-      const GateEntry& g = globals[i];
-      const double angle_sigma = g.sigma.angle + l.sigma.angle;
-      if (std::abs(wrap_angle(l.phi - g.phi)) > config_.gate_angle_rad + gs * angle_sigma) continue;
-      // The local midpoint in the global segment's frame.
-      const double dx = l.x - g.x;
-      const double dy = l.y - g.y;
-      const double along = g.c * dx + g.s * dy;
-      const double lateral = -g.s * dx + g.c * dy;
-      const double position_sigma = g.sigma.position + l.sigma.position;
-      if (std::abs(lateral) >
-          config_.gate_distance_m + gs * (position_sigma + angle_sigma * std::abs(along))) {
-        continue;
+  std::vector<std::pair<EntityId, std::size_t>> gated;  // (global segment, local index)
+  std::int64_t globals_count = 0;
+  for (const EntityId F : submap_order) {
+    const std::vector<GateSegment>& globals = by_submap.at(F);
+    globals_count += static_cast<std::int64_t>(globals.size());
+    // x_FL = ⊖x_WF ⊕ x_WL and the covariance of its (x, y, phi).
+    const Pose2 x_WF = state_.root_location(F);
+    const spmap::ImplicitMeasurement relative = spmap::measurement_from_chain(
+        {{x_WF, EntityKind::kFrame, true, F}, {x_WL, EntityKind::kFrame, false, L}}, {0, 1, 2});
+    Eigen::MatrixXd J(3, 6);
+    J.leftCols(3) = relative.blocks[0].entity == F ? relative.blocks[0].J : relative.blocks[1].J;
+    J.rightCols(3) = relative.blocks[0].entity == F ? relative.blocks[1].J : relative.blocks[0].J;
+    const Eigen::Matrix3d Sigma = J * state_.marginal({F, L}) * J.transpose();
+    const Pose2 x_FL = between(x_WF, x_WL);
+    const double sigma_frame_angle = std::sqrt(std::max(0.0, Sigma(2, 2)));
+    for (std::size_t j = 0; j < locals.size(); ++j) {
+      const GateSegment& l = locals[j];
+      // The local midpoint in F and the covariance of its position from Sigma.
+      const Pose2 x_F_Sj = compose(x_FL, l.location);
+      Eigen::Matrix<double, 2, 3> G;
+      const double cf = std::cos(x_FL.phi);
+      const double sf = std::sin(x_FL.phi);
+      G << 1.0, 0.0, -sf * l.location.x - cf * l.location.y,  //
+          0.0, 1.0, cf * l.location.x - sf * l.location.y;
+      const Eigen::Matrix2d cov_p = G * Sigma * G.transpose();
+      for (const GateSegment& g : globals) {
+        const double angle_sigma = sigma_frame_angle + g.sigma_angle + l.sigma_angle;
+        if (std::abs(wrap_angle(x_F_Sj.phi - g.location.phi)) > config_.gate_angle_rad + gs * angle_sigma) continue;
+        const Eigen::Vector2d d(x_F_Sj.x - g.location.x, x_F_Sj.y - g.location.y);
+        const Eigen::Vector2d t(g.c, g.s);
+        const Eigen::Vector2d nrm(-g.s, g.c);
+        const double along = t.dot(d);
+        const double lateral = nrm.dot(d);
+        const double lateral_sigma = std::sqrt(std::max(0.0, nrm.dot(cov_p * nrm))) + g.sigma_lateral +
+                                     std::abs(along) * g.sigma_angle + l.sigma_lateral;
+        if (std::abs(lateral) > config_.gate_distance_m + gs * lateral_sigma) continue;
+        // Extent gap along the global segment's axis (projection of the local one).
+        const double reach = l.half_length * std::abs(std::cos(x_F_Sj.phi - g.location.phi));
+        const double gap = std::max(along - reach - g.half_length, -g.half_length - (along + reach));
+        const double along_sigma = std::sqrt(std::max(0.0, t.dot(cov_p * t)));
+        if (gap > config_.gate_gap_m + gs * along_sigma) continue;
+        gated.emplace_back(g.id, j);
       }
-      // Extent gap along the global segment's axis (projection of the local one).
-      const double reach = l.half_length * std::abs(std::cos(l.phi - g.phi));
-      const double gap = std::max(along - reach - g.half_length, -g.half_length - (along + reach));
-      if (gap > config_.gate_gap_m + gs * position_sigma) continue;
-      gated.emplace_back(i, j);
     }
   }
+  rep.pairs_considered = globals_count * static_cast<std::int64_t>(k);
   rep.gate_rejected = rep.pairs_considered - static_cast<std::int64_t>(gated.size());
   rep.time.gate_s = clock.lap();
 
   // Individual compatibility (eq. 8) and overlap test; several pairings per
   // local segment are allowed (no nearest neighbour).
   std::vector<Candidate> candidates;
-  for (const auto& [i, j] : gated) {
+  for (const auto& [global_id, j] : gated) {
     Candidate c;
-    c.global_segment = globals[i].id;
+    c.global_segment = global_id;
     c.local_segment = locals[j].id;
     c.local_index = j;
     c.measurement = pairing_measurement(state_, c.global_segment, c.local_segment);
@@ -692,23 +691,27 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
   // (3) Incremental joint compatibility, best individual distance first. The
   // accepted set's S⁻¹ grows by Schur complements; rows a candidate adds that
   // the accepted ones already determine are dropped (careful inversion, §III.B).
-  std::stable_sort(candidates.begin(), candidates.end(),
-                   [](const Candidate& a, const Candidate& b) { return a.distance2 < b.distance2; });
-  std::vector<Candidate> accepted;
+  std::vector<std::size_t> order(candidates.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return candidates[a].distance2 < candidates[b].distance2;
+  });
+  std::vector<std::size_t> accepted;  // indices into candidates
+  std::vector<spmap::ImplicitMeasurement> accepted_measurements;
   if (!candidates.empty()) {
     std::vector<spmap::ImplicitMeasurement> all;
     all.reserve(candidates.size());
-    for (const Candidate& c : candidates) all.push_back(c.measurement);
-    const Eigen::MatrixXd S_all = state_.innovation_covariance(all);
+    for (const std::size_t c : order) all.push_back(candidates[c].measurement);
+    const GlobalState::Innovation in = state_.innovation(all);
+    const Eigen::MatrixXd& S_all = in.S;
     const Eigen::VectorXd h_all = spmap::stacked_value(all);
-    const double threshold =
-        rel * std::max({S_all.diagonal().maxCoeff(), state_.reference_scale(all), floor / rel});
+    const double threshold = rel * std::max({S_all.diagonal().maxCoeff(), in.reference_scale, floor / rel});
     std::vector<Eigen::Index> K;  // kept rows of S_all
     Eigen::MatrixXd S_K_inv(0, 0);
     Eigen::VectorXd h_K(0);
     double d2 = 0.0;
     int dof = 0;
-    for (std::size_t c = 0; c < candidates.size(); ++c) {
+    for (std::size_t c = 0; c < order.size(); ++c) {
       const auto r0 = static_cast<Eigen::Index>(2 * c);
       const auto nK = static_cast<Eigen::Index>(K.size());
       Eigen::MatrixXd B(2, nK);
@@ -727,7 +730,8 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
         ++rep.jc_rejected;
         continue;
       }
-      accepted.push_back(candidates[c]);
+      accepted.push_back(order[c]);
+      accepted_measurements.push_back(all[c]);
       d2 = d2_new;
       dof = dof_new;
       if (kc == 0) continue;
@@ -753,11 +757,8 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
 
   // EKF update with every compatible pairing (eq. 9), careful inversion (§6).
   {
-    std::vector<spmap::ImplicitMeasurement> ms;
-    ms.reserve(accepted.size());
-    for (const Candidate& c : accepted) ms.push_back(c.measurement);
     rep.update_dimension = state_.dimension();
-    const StateUpdateReport u = state_.ekf_update(ms, rel, floor);
+    const StateUpdateReport u = state_.ekf_update(accepted_measurements, rel, floor);
     rep.update_rows = u.rows;
     rep.rows_dropped = u.rows_dropped;
     rep.rows_kept = u.rows_kept;
@@ -772,7 +773,8 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
   std::vector<bool> used(k, false);
   std::set<EntityId> touched_submaps;
   std::map<std::size_t, std::vector<EntityId>> matches_of_local;
-  for (const Candidate& c : accepted) {
+  for (const std::size_t a : accepted) {
+    const Candidate& c = candidates[a];
     const Pose2 x_SiSj = between(state_.root_location(c.global_segment), state_.root_location(c.local_segment));
     const Entity& global = state_.entity(c.global_segment);
     const double before = global.length_m;
@@ -874,8 +876,8 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
     auto take = [&](EntityId id) {
       if (state_.contains(id) && seen.insert(id).second) ids.push_back(id);
     };
-    for (const Candidate& c : accepted) {
-      for (const spmap::JacobianBlock& b : c.measurement.blocks) take(b.entity);
+    for (const spmap::ImplicitMeasurement& m : accepted_measurements) {
+      for (const spmap::JacobianBlock& b : m.blocks) take(b.entity);
     }
     take(rec.frames.at(rec.next_seq).frame);
     for (const EntityId u : unpaired) take(u);

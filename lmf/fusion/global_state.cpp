@@ -326,153 +326,208 @@ void GlobalState::validate_measurement(const spmap::ImplicitMeasurement& m, cons
   }
 }
 
-Eigen::MatrixXd GlobalState::gather_PHt(const std::vector<spmap::ImplicitMeasurement>& measurements) const {
-  Eigen::Index m_total = 0;
-  for (const spmap::ImplicitMeasurement& m : measurements) m_total += m.h.size();
-  Eigen::MatrixXd PHt = Eigen::MatrixXd::Zero(n_, m_total);
-  Eigen::Index col = 0;
-  for (const spmap::ImplicitMeasurement& m : measurements) {
-    validate_measurement(m, "GlobalState::gather_PHt");
-    const Eigen::Index r = m.h.size();
-    // DESIGN §5.3: P Hᵀ is a gather over the few entities H touches, read from
-    // the lower triangle (rows left of the diagonal, columns below it).
-    for (const spmap::JacobianBlock& b : m.blocks) {
-      const Entity& e = entity(b.entity);
-      const Eigen::Index off = e.offset;
-      const Eigen::Index d = b.J.cols();
-      auto out = PHt.middleCols(col, r);
-      out.topRows(off).noalias() += (b.J * storage_.block(off, 0, d, off)).transpose();
-      out.middleRows(off, d).noalias() +=
-          symmetric_from_lower(storage_.block(off, off, d, d)) * b.J.transpose();
-      out.bottomRows(n_ - off - d).noalias() += storage_.block(off + d, off, n_ - off - d, d) * b.J.transpose();
-    }
-    col += r;
-  }
-  return PHt;
-}
-
-Eigen::MatrixXd GlobalState::innovation_covariance(
-    const std::vector<spmap::ImplicitMeasurement>& measurements) const {
-  // Union of touched entities, then S = H M Hᵀ + R with M their marginal.
-  std::vector<EntityId> touched;
-  std::unordered_map<EntityId, Eigen::Index> column_of;
+GlobalState::Stacked GlobalState::stack(const std::vector<spmap::ImplicitMeasurement>& measurements,
+                                         const char* where) const {
+  Stacked st;
+  Eigen::Index m = 0;
   Eigen::Index t = 0;
-  Eigen::Index m_total = 0;
-  for (const spmap::ImplicitMeasurement& m : measurements) {
-    validate_measurement(m, "GlobalState::innovation_covariance");
-    m_total += m.h.size();
-    for (const spmap::JacobianBlock& b : m.blocks) {
-      if (column_of.emplace(b.entity, t).second) {
-        touched.push_back(b.entity);
+  for (const spmap::ImplicitMeasurement& meas : measurements) {
+    validate_measurement(meas, where);
+    m += meas.h.size();
+    for (const spmap::JacobianBlock& b : meas.blocks) {
+      if (std::find(st.touched.begin(), st.touched.end(), b.entity) == st.touched.end()) {
+        st.touched.push_back(b.entity);
+        st.column.push_back(t);
         t += b.J.cols();
       }
     }
   }
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(m_total, t);
-  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(m_total, m_total);
+  st.H = Eigen::MatrixXd::Zero(m, t);
+  st.R = Eigen::MatrixXd::Zero(m, m);
+  st.h.resize(m);
   Eigen::Index row = 0;
-  for (const spmap::ImplicitMeasurement& m : measurements) {
-    const Eigen::Index r = m.h.size();
-    for (const spmap::JacobianBlock& b : m.blocks) {
-      H.block(row, column_of.at(b.entity), r, b.J.cols()) += b.J;
+  for (const spmap::ImplicitMeasurement& meas : measurements) {
+    const Eigen::Index r = meas.h.size();
+    for (const spmap::JacobianBlock& b : meas.blocks) {
+      const auto a = static_cast<std::size_t>(
+          std::find(st.touched.begin(), st.touched.end(), b.entity) - st.touched.begin());
+      st.H.block(row, st.column[a], r, b.J.cols()) += b.J;
     }
-    R.block(row, row, r, r) = m.R;
+    st.R.block(row, row, r, r) = meas.R;
+    st.h.segment(row, r) = meas.h;
     row += r;
   }
-  const Eigen::MatrixXd M = marginal(touched);
-  Eigen::MatrixXd S = H * M * H.transpose() + R;
-  return 0.5 * (S + S.transpose());
+  return st;
 }
 
-double GlobalState::reference_scale(const std::vector<spmap::ImplicitMeasurement>& measurements) const {
-  double scale = 0.0;
-  for (const spmap::ImplicitMeasurement& m : measurements) {
-    Eigen::VectorXd diag = m.R.diagonal();
-    for (const spmap::JacobianBlock& b : m.blocks) {
-      const Eigen::MatrixXd JP = b.J * block(b.entity, b.entity);
-      diag += JP.cwiseProduct(b.J).rowwise().sum();
-    }
-    if (diag.size() > 0) scale = std::max(scale, diag.maxCoeff());
+Eigen::MatrixXd GlobalState::touched_columns(const Stacked& st) const {
+  // DESIGN §5.3: P Hᵀ only needs the columns of the few entities H touches,
+  // read from the lower triangle (the row left of the diagonal, the column below it).
+  Eigen::MatrixXd C(n_, st.H.cols());
+  for (std::size_t a = 0; a < st.touched.size(); ++a) {
+    const Entity& e = entity(st.touched[a]);
+    const Eigen::Index off = e.offset;
+    const Eigen::Index d = spmap::dof(e.kind);
+    const Eigen::Index c = st.column[a];
+    C.block(0, c, off, d) = storage_.block(off, 0, d, off).transpose();
+    C.block(off, c, d, d) = symmetric_from_lower(storage_.block(off, off, d, d));
+    C.block(off + d, c, n_ - off - d, d) = storage_.block(off + d, off, n_ - off - d, d);
   }
-  return scale;
+  return C;
+}
+
+Eigen::MatrixXd GlobalState::touched_marginal(const Stacked& st, const Eigen::MatrixXd* columns) const {
+  const Eigen::Index t = st.H.cols();
+  Eigen::MatrixXd M(t, t);
+  for (std::size_t a = 0; a < st.touched.size(); ++a) {
+    const Entity& e = entity(st.touched[a]);
+    const Eigen::Index d = spmap::dof(e.kind);
+    if (columns != nullptr) {
+      M.middleRows(st.column[a], d) = columns->middleRows(e.offset, d);
+      continue;
+    }
+    for (std::size_t b = 0; b <= a; ++b) {
+      const Entity& f = entity(st.touched[b]);
+      const Eigen::Index df = spmap::dof(f.kind);
+      for (Eigen::Index i = 0; i < d; ++i) {
+        for (Eigen::Index j = 0; j < df; ++j) {
+          const double v = covariance(e.offset + i, f.offset + j);
+          M(st.column[a] + i, st.column[b] + j) = v;
+          M(st.column[b] + j, st.column[a] + i) = v;
+        }
+      }
+    }
+  }
+  return M;
+}
+
+double GlobalState::scale_of(const Stacked& st, const Eigen::MatrixXd& P_tt) {
+  // max_i (Σ_blocks J P_EE Jᵀ + R)_ii: the diagonal blocks of P only.
+  Eigen::VectorXd diag = st.R.diagonal();
+  for (std::size_t a = 0; a < st.touched.size(); ++a) {
+    const Eigen::Index c = st.column[a];
+    const Eigen::Index d = (a + 1 < st.touched.size() ? st.column[a + 1] : st.H.cols()) - c;
+    const Eigen::MatrixXd J = st.H.middleCols(c, d);
+    diag += (J * P_tt.block(c, c, d, d)).cwiseProduct(J).rowwise().sum();
+  }
+  return diag.size() > 0 ? diag.maxCoeff() : 0.0;
+}
+
+Eigen::MatrixXd GlobalState::gather_PHt(const std::vector<spmap::ImplicitMeasurement>& measurements) const {
+  const Stacked st = stack(measurements, "GlobalState::gather_PHt");
+  return touched_columns(st) * st.H.transpose();
+}
+
+GlobalState::Innovation GlobalState::innovation(const std::vector<spmap::ImplicitMeasurement>& measurements) const {
+  const Stacked st = stack(measurements, "GlobalState::innovation");
+  const Eigen::MatrixXd P_tt = touched_marginal(st, nullptr);
+  Innovation out;
+  out.S = st.H * P_tt * st.H.transpose() + st.R;
+  out.S = (0.5 * (out.S + out.S.transpose())).eval();
+  out.reference_scale = scale_of(st, P_tt);
+  return out;
+}
+
+std::vector<EntityId> GlobalState::add_many(const std::vector<NewEntity>& entities) {
+  Eigen::Index total = 0;
+  for (const NewEntity& e : entities) {
+    if (e.parent && !contains(*e.parent)) {
+      // Parents may also be earlier entries of this batch: those get ids next_id_ + i.
+      const EntityId first_new = next_id_;
+      if (*e.parent < first_new || *e.parent >= first_new + static_cast<EntityId>(entities.size())) {
+        throw std::invalid_argument("GlobalState::add_many: unknown parent " + id_text(*e.parent));
+      }
+    }
+    total += spmap::dof(e.kind);
+  }
+  if (n_ + total > capacity()) reserve(std::max<Eigen::Index>({n_ + total, capacity() + capacity() / 4, 64}));
+  // One pass over the new rows: zero under the old columns and the new block.
+  storage_.block(n_, 0, total, n_).setZero();
+  storage_.block(n_, n_, total, total).setZero();
+  std::vector<EntityId> ids;
+  ids.reserve(entities.size());
+  for (const NewEntity& ne : entities) {
+    Entity e;
+    e.id = next_id_++;
+    e.kind = ne.kind;
+    e.location = ne.location;
+    e.length_m = ne.length_m;
+    e.parent = ne.parent;
+    e.offset = n_;
+    n_ += spmap::dof(ne.kind);
+    index_.emplace(e.id, entities_.size());
+    entities_.push_back(e);
+    ids.push_back(e.id);
+  }
+  return ids;
 }
 
 StateUpdateReport GlobalState::ekf_update(const std::vector<spmap::ImplicitMeasurement>& measurements,
                                           double relative_tolerance, double absolute_floor) {
   StateUpdateReport report;
-  for (const spmap::ImplicitMeasurement& m : measurements) {
-    for (const spmap::JacobianBlock& b : m.blocks) {
-      if (std::find(report.touched.begin(), report.touched.end(), b.entity) == report.touched.end()) {
-        report.touched.push_back(b.entity);
-      }
-    }
-  }
-  const Eigen::MatrixXd PHt = gather_PHt(measurements);
-  const Eigen::Index m_total = PHt.cols();
+  const Stacked st = stack(measurements, "GlobalState::ekf_update");
+  report.touched = st.touched;
+  const Eigen::Index m_total = st.H.rows();
   report.rows = static_cast<int>(m_total);
   if (m_total == 0) return report;
 
-  // S = H (P Hᵀ) + R, from the rows of P Hᵀ at the touched entities.
-  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(m_total, m_total);
-  Eigen::VectorXd h(m_total);
-  Eigen::Index row = 0;
-  for (const spmap::ImplicitMeasurement& m : measurements) {
-    const Eigen::Index r = m.h.size();
-    for (const spmap::JacobianBlock& b : m.blocks) {
-      S.middleRows(row, r).noalias() += b.J * PHt.middleRows(entity(b.entity).offset, b.J.cols());
-    }
-    S.block(row, row, r, r) += m.R;
-    h.segment(row, r) = m.h;
-    row += r;
-  }
+  // P Hᵀ by one product over the gathered columns; S from their touched rows.
+  const Eigen::MatrixXd C = touched_columns(st);
+  const Eigen::MatrixXd P_tt = touched_marginal(st, &C);
+  Eigen::MatrixXd PHt = C * st.H.transpose();
+  Eigen::MatrixXd S = st.H * P_tt * st.H.transpose() + st.R;
   S = (0.5 * (S + S.transpose())).eval();
 
   // DESIGN §6: full-pivot Gauss–Jordan; drop the rows whose pivots fall below
   // the threshold (relative to the scale of S, never below the absolute floor).
-  const double scale = std::max(reference_scale(measurements), absolute_floor / relative_tolerance);
+  const double scale = std::max(scale_of(st, P_tt), absolute_floor / relative_tolerance);
   const spmap::CarefulInverse ci = spmap::careful_inverse(S, relative_tolerance, scale);
   report.rows_dropped = static_cast<int>(ci.dropped.size());
   const auto k = static_cast<Eigen::Index>(ci.kept.size());
   report.rows_kept = static_cast<int>(k);
   if (k == 0) return report;
 
-  Eigen::MatrixXd PHt_k(n_, k);
   Eigen::MatrixXd S_k(k, k);
   Eigen::VectorXd h_k(k);
   for (Eigen::Index a = 0; a < k; ++a) {
     const Eigen::Index ra = ci.kept[static_cast<std::size_t>(a)];
-    PHt_k.col(a) = PHt.col(ra);
-    h_k(a) = h(ra);
+    h_k(a) = st.h(ra);
     for (Eigen::Index b = 0; b < k; ++b) S_k(a, b) = S(ra, ci.kept[static_cast<std::size_t>(b)]);
+  }
+  if (k < m_total) {
+    Eigen::MatrixXd PHt_k(n_, k);
+    for (Eigen::Index a = 0; a < k; ++a) PHt_k.col(a) = PHt.col(ci.kept[static_cast<std::size_t>(a)]);
+    PHt = std::move(PHt_k);
   }
   const Eigen::VectorXd Sinv_h = ci.inverse * h_k;
   report.distance2 = h_k.dot(Sinv_h);
 
   // Eq. (9): p̂ = −W ĥ with W = P Hᵀ S⁻¹ (the measurement predicts ĥ, observes 0).
-  const Eigen::VectorXd p_hat = -(PHt_k * Sinv_h);
+  const Eigen::VectorXd p_hat = -(PHt * Sinv_h);
 
   // P ← P − P Hᵀ S⁻¹ H P = P − U Uᵀ, U = P Hᵀ L⁻ᵀ with S_k = L Lᵀ: one
   // symmetric rank-k update of the lower triangle (DESIGN §5.3).
-  Eigen::MatrixXd U;
   const Eigen::LLT<Eigen::MatrixXd> llt(S_k);
   if (llt.info() == Eigen::Success) {
-    U = llt.matrixL().solve(PHt_k.transpose()).transpose();
+    llt.matrixU().solveInPlace<Eigen::OnTheRight>(PHt);  // PHt ← PHt L⁻ᵀ
   } else {
     // The kept pivots are well above the threshold, so this is rounding only:
     // factor the careful inverse itself, negative rounding clipped.
     const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(ci.inverse);
     const Eigen::VectorXd root = es.eigenvalues().cwiseMax(0.0).cwiseSqrt();
-    U = PHt_k * es.eigenvectors() * root.asDiagonal();
+    PHt = (PHt * es.eigenvectors() * root.asDiagonal()).eval();
   }
-  storage_.topLeftCorner(n_, n_).selfadjointView<Eigen::Lower>().rankUpdate(U, -1.0);
+  storage_.topLeftCorner(n_, n_).selfadjointView<Eigen::Lower>().rankUpdate(PHt, -1.0);
 
-  // Fold p̂ into every location and reset it to 0 (DESIGN §3).
+  // Fold p̂ into every location and reset it to 0 (DESIGN §3): x̂ ← x̂ ⊕ Bᵀ p̂.
   assert(p_hat.allFinite());
   for (Entity& e : entities_) {
-    const Eigen::Index d = spmap::dof(e.kind);
-    const Eigen::VectorXd p_E = p_hat.segment(e.offset, d);
-    if (p_E.isZero(0.0)) continue;
-    e.location = spmap::fold(e.location, e.kind, p_E);
+    const double* p = p_hat.data() + e.offset;
+    if (e.kind == EntityKind::kSegment) {
+      if (p[0] != 0.0 || p[1] != 0.0) e.location = compose(e.location, Pose2(0.0, p[0], p[1]));
+    } else if (p[0] != 0.0 || p[1] != 0.0 || p[2] != 0.0) {
+      e.location = compose(e.location, Pose2(p[0], p[1], p[2]));
+    }
   }
   return report;
 }

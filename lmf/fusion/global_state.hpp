@@ -116,14 +116,23 @@ class GlobalState {
 
   // P Hᵀ (n x m) as a gather over the entities the measurements touch.
   Eigen::MatrixXd gather_PHt(const std::vector<spmap::ImplicitMeasurement>& measurements) const;
-  // S = H P Hᵀ + R through the marginal of the touched entities only (m x m).
-  Eigen::MatrixXd innovation_covariance(const std::vector<spmap::ImplicitMeasurement>& measurements) const;
 
-  // The scale against which the careful inversion judges a pivot small: the
-  // largest diagonal of S as if the touched entities were uncorrelated,
-  // max_i (Σ_blocks J P_EE Jᵀ + R)_ii (same rule as spmap::innovation_reference_scale).
+  // S = H P Hᵀ + R (m x m) through the marginal of the touched entities only,
+  // and the scale against which the careful inversion judges a pivot small:
+  // the largest diagonal of S as if the touched entities were uncorrelated,
+  // max_i (Σ_blocks J P_EE Jᵀ + R)_ii (the rule of spmap::innovation_reference_scale).
   // A relation the state already knows has S ≈ 0 (rounding) while this is not small.
-  double reference_scale(const std::vector<spmap::ImplicitMeasurement>& measurements) const;
+  struct Innovation {
+    Eigen::MatrixXd S;
+    double reference_scale = 0.0;
+  };
+  Innovation innovation(const std::vector<spmap::ImplicitMeasurement>& measurements) const;
+  Eigen::MatrixXd innovation_covariance(const std::vector<spmap::ImplicitMeasurement>& measurements) const {
+    return innovation(measurements).S;
+  }
+  double reference_scale(const std::vector<spmap::ImplicitMeasurement>& measurements) const {
+    return innovation(measurements).reference_scale;
+  }
 
   // One EKF update with all measurements (paper eq. 9) through the careful
   // inversion (DESIGN §6): rows whose pivot is below
@@ -133,10 +142,34 @@ class GlobalState {
   StateUpdateReport ekf_update(const std::vector<spmap::ImplicitMeasurement>& measurements,
                                double relative_tolerance, double absolute_floor);
 
+  // Appends several entities at once (zero covariance), touching the rows of
+  // P once instead of once per entity. Returns their ids in order.
+  struct NewEntity {
+    EntityKind kind = EntityKind::kSegment;
+    Pose2 location;
+    std::optional<EntityId> parent;
+    double length_m = 0.0;
+  };
+  std::vector<EntityId> add_many(const std::vector<NewEntity>& entities);
+
  private:
   std::size_t index_of(EntityId id) const;
   void validate_measurement(const spmap::ImplicitMeasurement& m, const char* where) const;
   std::vector<Eigen::Index> rows_of(const std::vector<EntityId>& ids) const;
+  // The stacked measurements over the entities they touch: H (m x t, columns
+  // in the order of `touched`), R and ĥ.
+  struct Stacked {
+    std::vector<EntityId> touched;
+    std::vector<Eigen::Index> column;  // first column of each touched entity in H
+    Eigen::MatrixXd H;
+    Eigen::MatrixXd R;
+    Eigen::VectorXd h;
+  };
+  Stacked stack(const std::vector<spmap::ImplicitMeasurement>& measurements, const char* where) const;
+  // P(:, touched) (n x t) and P(touched, touched) (t x t).
+  Eigen::MatrixXd touched_columns(const Stacked& st) const;
+  Eigen::MatrixXd touched_marginal(const Stacked& st, const Eigen::MatrixXd* columns) const;
+  static double scale_of(const Stacked& st, const Eigen::MatrixXd& P_tt);
   void write_marginal(const std::vector<EntityId>& ids, const Eigen::MatrixXd& M, bool accumulate);
 
   std::vector<Entity> entities_;
