@@ -167,6 +167,44 @@ TEST(LocalMapPairing, FarAwayCollinearObservationFailsTheOverlapTest) {
   EXPECT_EQ(r.map_segments, 2);
 }
 
+// A turn on the spot with a 2.5-sigma heading error: every right pairing is off
+// by the same rotation, while a spurious map segment D sits exactly where wall A
+// appears from the predicted pose. Greedy JC takes D first and rejects the rest;
+// the restarts find the larger set {A, B, C} and correct the heading.
+TEST(LocalMapJointCompatibility, RestartsRecoverFromAnEarlySpuriousPairing) {
+  const Pose2 predicted(0.0, 0.0, 1.0);
+  const Pose2 truth(0.0, 0.0, 1.2);
+  const Eigen::Matrix2d known = Eigen::Vector2d(1e-4, 1e-5).asDiagonal();
+  const std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> walls = {
+      {{-3.0, 3.0}, {3.0, 3.0}}, {{3.0, -3.0}, {3.0, 3.0}}, {{-3.0, -3.0}, {3.0, -3.0}}};
+  for (const std::size_t restarts : {std::size_t{0}, std::size_t{3}}) {
+    LocalMapConfig config;
+    config.joint_compatibility_restarts = restarts;
+    config.constraints_enabled = false;
+    LocalMap lm(config);
+    lm.predict(predicted);  // sigma_phi = 8 % of 1 rad
+    std::vector<ObservedSegment> scan;
+    for (const auto& [a, b] : walls) {
+      const ObservedSegment e = observe_wall(truth, a, b);
+      lm.add_segment_for_test(compose(truth, e.location), e.length_m, known);  // the true wall, well known
+      scan.push_back(e);
+    }
+    // D: where wall A's observation lands when placed with the predicted pose.
+    lm.add_segment_for_test(compose(predicted, scan[0].location), scan[0].length_m, known);
+    const ScanReport r = lm.update(0, Pose2(), scan);
+    EXPECT_EQ(r.pairings_accepted_individual, 4) << restarts;
+    if (restarts == 0) {
+      EXPECT_EQ(r.pairings_accepted_joint, 1);
+      EXPECT_EQ(r.joint_compatibility_restarts, 0);
+      EXPECT_NEAR(lm.x_LR().phi, predicted.phi, 0.02);
+    } else {
+      EXPECT_EQ(r.pairings_accepted_joint, 3);
+      EXPECT_GE(r.joint_compatibility_restarts, 1);
+      EXPECT_NEAR(lm.x_LR().phi, truth.phi, 0.02);
+    }
+  }
+}
+
 TEST(LocalMapFusion, CollinearSegmentsJoinedByOneObservationAreFused) {
   LocalMap lm;
   const Eigen::Matrix2d cov = Eigen::Vector2d(0.02 * 0.02, 0.01 * 0.01).asDiagonal();
