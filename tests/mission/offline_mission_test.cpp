@@ -1,0 +1,109 @@
+#include "lmf/mission/offline_mission.hpp"
+
+#include <filesystem>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "lmf/mission/mission_inputs.hpp"
+#include "lmf/mission/mission_report.hpp"
+#include "lmf/sim/mission.hpp"
+#include "lmf/sim/mission_writer.hpp"
+#include "test_support.hpp"
+
+namespace lmf::mission {
+namespace {
+
+// A short two-robot simulated mission written to a temporary folder once.
+const std::filesystem::path& simulated_folder() {
+  static const std::filesystem::path dir = [] {
+    sim::MissionConfig config;
+    config.num_robots = 2;
+    config.duration_s = 150.0;
+    config.seed = 3;
+    const std::filesystem::path out =
+        std::filesystem::temp_directory_path() / ("lmf_mission_test_" + std::to_string(::getpid()));
+    sim::write_mission(sim::simulate_mission(config), out);
+    return out;
+  }();
+  return dir;
+}
+
+MissionResult run(const MissionInputs& inputs, MissionConfig config = {}) {
+  OfflineMission mission(config, inputs);
+  return mission.run();
+}
+
+TEST(OfflineMission, SimulatedTwoRobotMissionJoinsBySightingAndMaps) {
+  const MissionInputs inputs = load_sim_folder(simulated_folder(), SightingNoise{});
+  ASSERT_EQ(inputs.robots.size(), 2u);
+  ASSERT_FALSE(inputs.sightings.empty());
+  OfflineMission mission(MissionConfig{}, inputs);
+  const MissionResult result = mission.run();
+  for (const RobotResult& r : result.robots) {
+    SCOPED_TRACE(r.name);
+    EXPECT_TRUE(r.joined);
+    EXPECT_EQ(r.trajectory.size(), r.scans);  // every scan has a final pose
+    EXPECT_EQ(r.local_maps_fused, r.local_maps_shipped);
+    EXPECT_TRUE(r.covariance_always_ok) << r.first_covariance_problem;
+  }
+  EXPECT_TRUE(result.global_covariance_always_ok);
+  const auto score = score_mission(result, mission.inputs());
+  ASSERT_TRUE(score.has_value());
+  // Odometry alone drifts by metres over this mission; the map keeps the robots
+  // within a few decimetres of the truth in one common frame.
+  EXPECT_LT(score->ate.position_rmse_m, 0.3);
+  for (const RobotScore& s : score->robots) EXPECT_LT(s.ate.position_rmse_m, s.odometry_ate.position_rmse_m);
+  EXPECT_GT(mission.global_map().counts().segments, 20);
+}
+
+TEST(OfflineMission, RepeatedRunsAreIdentical) {
+  const MissionInputs inputs = load_sim_folder(simulated_folder(), SightingNoise{});
+  const MissionResult a = run(inputs);
+  const MissionResult b = run(inputs);
+  ASSERT_EQ(a.robots.size(), b.robots.size());
+  for (std::size_t i = 0; i < a.robots.size(); ++i) {
+    ASSERT_EQ(a.robots[i].trajectory.size(), b.robots[i].trajectory.size());
+    for (std::size_t k = 0; k < a.robots[i].trajectory.size(); ++k) {
+      EXPECT_EQ(a.robots[i].trajectory[k].pose.x, b.robots[i].trajectory[k].pose.x);
+      EXPECT_EQ(a.robots[i].trajectory[k].pose.phi, b.robots[i].trajectory[k].pose.phi);
+    }
+  }
+}
+
+TEST(OfflineMission, RejectsDuplicateRobotIds) {
+  MissionInputs inputs;
+  inputs.robots.resize(2);
+  EXPECT_THROW(OfflineMission(MissionConfig{}, inputs), std::invalid_argument);
+  EXPECT_THROW(OfflineMission(MissionConfig{}, MissionInputs{}), std::invalid_argument);
+}
+
+TEST(OfflineMission, TimingStatsUseNearestRank) {
+  std::vector<double> d;
+  for (int i = 1; i <= 200; ++i) d.push_back(i);
+  const TimingStats s = timing_stats(d);
+  EXPECT_EQ(s.count, 200u);
+  EXPECT_DOUBLE_EQ(s.p50_ms, 100.0);
+  EXPECT_DOUBLE_EQ(s.p99_ms, 198.0);
+  EXPECT_DOUBLE_EQ(s.max_ms, 200.0);
+  EXPECT_DOUBLE_EQ(s.mean_ms, 100.5);
+}
+
+// The acceptance figure on the real log with one robot: ATE <= 0.25 m
+// (odometry alone: about 4 m). The split runs are reported in the README; they
+// do not meet that figure yet.
+TEST(Belgioioso, OneRobotAteWithinQuarterMetre) {
+  LMF_REQUIRE_DATASETS(dir);
+  const MissionInputs inputs =
+      load_logs({dir / "belgioioso-noisy.log.gz"}, 1, dir / "belgioioso-noisy.gt", SightingNoise{});
+  OfflineMission mission(MissionConfig{}, inputs);
+  const MissionResult result = mission.run();
+  const auto score = score_mission(result, mission.inputs());
+  ASSERT_TRUE(score.has_value());
+  EXPECT_EQ(score->ate.count, 395u);
+  EXPECT_LT(score->ate.position_rmse_m, 0.25);
+  EXPECT_TRUE(result.global_covariance_always_ok);
+}
+
+}  // namespace
+}  // namespace lmf::mission
