@@ -12,6 +12,19 @@
 //   new segments and nearly parallel/perpendicular existing ones, and
 //   10 the ship policy (should_ship / snapshot / reset).
 //
+// Choices beyond the bare steps (each documented where it is made):
+//  * step 2: a per-view observation noise is added to the extraction's
+//    covariance (LocalMapConfig::observation_*_noise);
+//  * step 3: a fixed-size evaluation of the same individual test rejects the
+//    clearly incompatible combinations before spmap::individual_compatibility;
+//  * step 4: when the joint test rejects candidates it is rerun with a rejected
+//    candidate first (LocalMapConfig::joint_compatibility_restarts) and the
+//    largest compatible set is used;
+//  * step 8: an observation whose individually compatible pairings were all
+//    rejected by the joint test is dropped for this scan, not added;
+//  * step 9: one representative per group of segments whose relative angles are
+//    already perfectly known, and a joint test over the gated constraints.
+//
 // Units: metres, radians; time stamps in microseconds (from the data, never the
 // wall clock). Not thread-safe; all methods are synchronous.
 #pragma once
