@@ -181,9 +181,11 @@ void PlayerNode::lockstep_timeout(std::size_t event_index) {
     ack_timer_ = loop_.after(options_.ack_timeout, [this, event_index] { lockstep_timeout(event_index); });
     return;
   }
-  std::cerr << "lmf-player: no ack for robot " << inputs_.robots[event.robot].robot_id << " scan " << event.scan
-            << " after " << attempts_ << " sends; going on\n";
   ++counters_.scans_given_up;
+  if (counters_.scans_given_up <= 10 || counters_.scans_given_up % 100 == 0) {
+    std::cerr << "lmf-player: no ack for robot " << inputs_.robots[event.robot].robot_id << " scan " << event.scan
+              << " after " << attempts_ << " sends; going on (" << counters_.scans_given_up << " given up)\n";
+  }
   attempts_ = 0;
   ++next_event_;
   lockstep_step();

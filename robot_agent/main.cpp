@@ -62,7 +62,8 @@ int main(int argc, char** argv) {
   const auto& c = agent.counters();
   std::cerr << kProgram << " " << robot_id << ": stopped; " << c.scans_processed << " scans, " << c.maps_shipped
             << " local maps shipped, " << c.maps_acknowledged << " acknowledged, " << c.map_resends << " resends, "
-            << agent.rejects().total() << " messages rejected" << (agent.mission_done() ? ", mission done" : "")
+            << agent.rejects().total() << " messages rejected"
+            << (agent.mission_done() ? ", mission done" : agent.mission_ended() ? ", mission end received" : "")
             << "\n";
   return 0;
 }

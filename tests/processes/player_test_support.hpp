@@ -1,0 +1,190 @@
+// Helpers of the agent/player process tests: a simulated mission on disk, a
+// fake fusion server (GlobalMap behind the LCM protocol, fusing in arrival
+// order on the loop thread), and running an event loop until a condition holds.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "lmf/fusion/global_map.hpp"
+#include "lmf/mission/mission_inputs.hpp"
+#include "lmf/mission/offline_mission.hpp"
+#include "lmf/sim/mission.hpp"
+#include "lmf/sim/mission_writer.hpp"
+#include "runtime/bus.hpp"
+#include "runtime/channels.hpp"
+#include "runtime/convert.hpp"
+#include "runtime/event_loop.hpp"
+
+namespace lmf::testing {
+
+// Runs `loop` until `done()` (checked every 5 ms) or `timeout`; true if done.
+inline bool run_until(runtime::EventLoop& loop, const std::function<bool()>& done,
+                      std::chrono::milliseconds timeout) {
+  if (done()) return true;
+  const int timer = loop.every(std::chrono::milliseconds(5), [&] {
+    if (done()) loop.stop();
+  });
+  loop.run_for(timeout);
+  loop.cancel(timer);
+  return done();
+}
+
+// A fresh folder under the system temp dir, removed with the object.
+class TempDir {
+ public:
+  explicit TempDir(const std::string& name) {
+    path_ = std::filesystem::temp_directory_path() /
+            (name + "-" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "-" +
+             std::to_string(std::chrono::steady_clock::now().time_since_epoch().count()));
+    std::filesystem::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ignored;
+    std::filesystem::remove_all(path_, ignored);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  std::filesystem::path path_;
+};
+
+// A short two-robot simulated mission written as lmf-sim does.
+inline void write_sim_mission(const std::filesystem::path& dir, double duration_s, std::uint64_t seed = 3,
+                              int num_robots = 2) {
+  sim::MissionConfig config;
+  config.seed = seed;
+  config.num_robots = num_robots;
+  config.duration_s = duration_s;
+  sim::write_mission(sim::simulate_mission(config), dir);
+}
+
+// What the wire does to a scan (ranges and angles become float), so an
+// offline run on these inputs sees exactly what the agents see.
+inline mission::MissionInputs as_sent(mission::MissionInputs inputs) {
+  for (mission::RobotLog& log : inputs.robots) {
+    for (LaserScan& scan : log.scans) {
+      scan.angle_min_rad = static_cast<float>(scan.angle_min_rad);
+      scan.angle_increment_rad = static_cast<float>(scan.angle_increment_rad);
+      scan.max_range_m = static_cast<float>(scan.max_range_m);
+      for (double& r : scan.ranges_m) r = static_cast<float>(r);
+    }
+  }
+  return inputs;
+}
+
+// The server side of the protocol, minimal: fuses every local map and
+// sighting as it arrives, acks FUSED / DUPLICATE / QUEUED, publishes
+// corrected frames after each fusion. Robot `first_robot` joins with L = W.
+class FakeServer {
+ public:
+  FakeServer(runtime::Bus& bus, const fusion::GlobalMapConfig& config, runtime::Channels channels,
+             int first_robot = 0)
+      : bus_(bus), channels_(std::move(channels)), map_(config) {
+    record(map_.join_robot(first_robot, Pose2()));
+    subscriptions_.push_back(bus_.subscribe(channels_.local_map(), [this](const std::string&, const void* d,
+                                                                         std::size_t n) { on_local_map(d, n); }));
+    subscriptions_.push_back(bus_.subscribe(channels_.sighting(), [this](const std::string&, const void* d,
+                                                                        std::size_t n) { on_sighting(d, n); }));
+  }
+  ~FakeServer() {
+    for (const int id : subscriptions_) bus_.unsubscribe(id);
+  }
+
+  // Ignore the first `n` transmissions of every local map (to exercise resends).
+  void ignore_first_transmissions(int n) { ignore_first_ = n; }
+
+  const fusion::GlobalMap& map() const { return map_; }
+  // How often each (robot, seq) was fused (must be once) and received.
+  const std::map<std::pair<int, std::int64_t>, int>& fused() const { return fused_; }
+  const std::map<std::pair<int, std::int64_t>, int>& received() const { return received_; }
+  std::int64_t fusions() const { return fusions_; }
+  std::int64_t sightings() const { return sightings_; }
+  std::int64_t rejected() const { return rejected_; }
+  std::int64_t duplicates() const { return duplicates_; }
+  // Scan poses of every fused local map, by (robot, seq).
+  const std::map<std::pair<int, std::int64_t>, std::vector<ScanPose>>& scan_poses() const { return scan_poses_; }
+
+ private:
+  void on_local_map(const void* data, std::size_t size) {
+    auto snapshot = runtime::decode<LocalMapSnapshot>(data, size);
+    if (!snapshot) {
+      ++rejected_;
+      return;
+    }
+    const LocalMapSnapshot& s = snapshot.value();
+    const auto key = std::make_pair(s.robot_id, s.seq);
+    if (++received_[key] <= ignore_first_) return;
+    runtime::LocalMapAck ack{0, s.robot_id, s.seq, runtime::LocalMapAck::Status::kDuplicate};
+    if (!map_.has_fused(s.robot_id, s.seq) && !map_.is_queued(s.robot_id, s.seq)) {
+      scan_poses_[key] = s.scan_poses;
+      record(map_.fuse(s));
+      ack.status = map_.has_fused(s.robot_id, s.seq) ? runtime::LocalMapAck::Status::kFused
+                                                      : runtime::LocalMapAck::Status::kQueued;
+    } else {
+      ++duplicates_;
+    }
+    bus_.publish(channels_.local_map_ack(), runtime::to_message(ack));
+  }
+
+  void on_sighting(const void* data, std::size_t size) {
+    auto sighting = runtime::decode<runtime::Sighting>(data, size);
+    if (!sighting) {
+      ++rejected_;
+      return;
+    }
+    const runtime::Sighting& s = sighting.value();
+    fusion::RobotSighting r;
+    r.utime = s.utime;
+    r.observer_id = s.observer_id;
+    r.observed_id = s.observed_id;
+    r.observer_seq = s.observer_seq;
+    r.x_LA = s.x_LA;
+    r.cov_LA = s.cov_LA;
+    r.x_AB = s.x_AB;
+    r.cov_AB = s.covariance;
+    r.observed_seq = s.observed_seq;
+    r.x_LB = s.x_LB;
+    r.cov_LB = s.cov_LB;
+    ++sightings_;
+    record(map_.add_sighting(r).fused);
+  }
+
+  void record(const std::vector<fusion::FusionReport>& reports) {
+    for (const fusion::FusionReport& report : reports) ++fused_[{report.robot_id, report.seq}];
+    fusions_ += static_cast<std::int64_t>(reports.size());
+    runtime::CorrectedFrames frames;
+    frames.fusion_count = fusions_;
+    for (const fusion::CorrectedFrame& f : map_.corrected_frames()) {
+      frames.frames.push_back({f.robot_id, f.seq - 1, f.x_WL, f.covariance});
+    }
+    auto msg = runtime::to_message(frames);
+    if (msg) bus_.publish(channels_.corrected_frames(), msg.value());
+  }
+
+  runtime::Bus& bus_;
+  runtime::Channels channels_;
+  fusion::GlobalMap map_;
+  int ignore_first_ = 0;
+  std::map<std::pair<int, std::int64_t>, int> fused_;
+  std::map<std::pair<int, std::int64_t>, int> received_;
+  std::map<std::pair<int, std::int64_t>, std::vector<ScanPose>> scan_poses_;
+  std::int64_t fusions_ = 0;
+  std::int64_t sightings_ = 0;
+  std::int64_t rejected_ = 0;
+  std::int64_t duplicates_ = 0;
+  std::vector<int> subscriptions_;
+};
+
+}  // namespace lmf::testing
