@@ -128,6 +128,9 @@ class ServerNode {
   bool worker_busy() const { return worker_ && worker_->busy(); }
   std::size_t queue_length() const { return worker_ ? worker_->waiting() : 0; }
   const ServerOptions& options() const { return options_; }
+  // The GlobalMap once shutdown() joined the worker (nullptr before): for
+  // tests and tools that compare the final map.
+  const fusion::GlobalMap* map_after_shutdown() const { return stopped_ ? &map_ : nullptr; }
 
   // The message builders, public for tests.
   lmf::server_status_t make_status() const;
