@@ -44,21 +44,26 @@ std::string where(int robot_id, std::int64_t seq) {
 
 bool finite(const Pose2& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.phi); }
 
-// Empty when P is symmetric PSD within tolerance · max(1, max |P_ii|), else why not.
-std::string covariance_problem(const Eigen::MatrixXd& P, double tolerance) {
-  if (!P.allFinite()) return "has NaN or inf entries";
-  if (P.rows() == 0) return "";
+using Reason = InvalidInput::Reason;
+
+// Why P is not a covariance (symmetric PSD within tolerance · max(1, max |P_ii|)), if it is not.
+std::optional<std::pair<Reason, std::string>> covariance_problem(const Eigen::MatrixXd& P, double tolerance) {
+  if (!P.allFinite()) return std::pair{Reason::kNonFinite, std::string("has NaN or inf entries")};
+  if (P.rows() == 0) return std::nullopt;
   const double scale = std::max(1.0, P.diagonal().cwiseAbs().maxCoeff());
   const double asymmetry = (P - P.transpose()).cwiseAbs().maxCoeff();
-  if (asymmetry > tolerance * scale) return "is not symmetric (max |P - P^T| = " + std::to_string(asymmetry) + ")";
+  if (asymmetry > tolerance * scale) {
+    return std::pair{Reason::kNotSymmetricPsd, "is not symmetric (max |P - P^T| = " + std::to_string(asymmetry) + ")"};
+  }
   // PSD within tolerance <=> P + tolerance·scale·I is positive definite: one
   // Cholesky (O(n³/6)) instead of an eigen-decomposition, which is only run to
   // say by how much when the test fails.
   Eigen::MatrixXd shifted = 0.5 * (P + P.transpose());
   shifted.diagonal().array() += std::max(tolerance * scale, std::numeric_limits<double>::min());
-  if (Eigen::LLT<Eigen::MatrixXd>(shifted).info() == Eigen::Success) return "";
+  if (Eigen::LLT<Eigen::MatrixXd>(shifted).info() == Eigen::Success) return std::nullopt;
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(0.5 * (P + P.transpose()), Eigen::EigenvaluesOnly);
-  return "is not positive semidefinite (smallest eigenvalue " + std::to_string(es.eigenvalues().minCoeff()) + ")";
+  return std::pair{Reason::kNotSymmetricPsd, "is not positive semidefinite (smallest eigenvalue " +
+                                                 std::to_string(es.eigenvalues().minCoeff()) + ")"};
 }
 
 // Chi2 test of an innovation through the careful inversion (eq. 8, DESIGN §6).
@@ -194,32 +199,40 @@ void GlobalMapConfig::validate() const {
 
 GlobalMap::GlobalMap(GlobalMapConfig config) : config_(config) { config_.validate(); }
 
-void GlobalMap::check_pose(const Pose2& pose, const char* what) const {
-  if (!finite(pose) || std::abs(pose.x) > config_.max_coordinate_m || std::abs(pose.y) > config_.max_coordinate_m) {
-    throw std::invalid_argument(std::string(what) + " is not finite or beyond max_coordinate_m");
+void GlobalMap::check_pose(const Pose2& pose, const std::string& what) const {
+  if (!finite(pose)) throw InvalidInput(Reason::kNonFinite, what + " is not finite");
+  if (std::abs(pose.x) > config_.max_coordinate_m || std::abs(pose.y) > config_.max_coordinate_m) {
+    throw InvalidInput(Reason::kOutOfRange, what + " is beyond max_coordinate_m");
+  }
+}
+
+void GlobalMap::check_covariance(const Eigen::MatrixXd& P, const std::string& what) const {
+  if (const auto problem = covariance_problem(P, config_.snapshot_tolerance)) {
+    throw InvalidInput(problem->first, what + " " + problem->second);
   }
 }
 
 void GlobalMap::validate(const LocalMapSnapshot& s) const {
   const std::string at = where(s.robot_id, s.seq);
-  if (s.seq < 0) throw std::invalid_argument(at + ": negative sequence number");
-  check_pose(s.x_LR, (at + ": robot pose x_LR").c_str());
+  if (s.seq < 0) throw InvalidInput(Reason::kOutOfRange, at + ": negative sequence number");
+  check_pose(s.x_LR, at + ": robot pose x_LR");
   for (std::size_t j = 0; j < s.segments.size(); ++j) {
     const SegmentEstimate& seg = s.segments[j];
-    check_pose(seg.location, (at + ": segment " + std::to_string(j) + " location").c_str());
-    if (!std::isfinite(seg.length_m) || seg.length_m <= 0.0 || seg.length_m > config_.max_coordinate_m) {
-      throw std::invalid_argument(at + ": segment " + std::to_string(j) + " has length " +
-                                  std::to_string(seg.length_m) + " (must be finite and > 0)");
+    const std::string name = at + ": segment " + std::to_string(j);
+    check_pose(seg.location, name + " location");
+    if (!std::isfinite(seg.length_m)) throw InvalidInput(Reason::kNonFinite, name + " length is not finite");
+    if (seg.length_m <= 0.0 || seg.length_m > config_.max_coordinate_m) {
+      throw InvalidInput(Reason::kOutOfRange, name + " has length " + std::to_string(seg.length_m) + " (must be > 0)");
     }
   }
   const auto expected = static_cast<Eigen::Index>(3 + 2 * s.segments.size());
   if (s.covariance.rows() != expected || s.covariance.cols() != expected) {
-    throw std::invalid_argument(at + ": covariance is " + std::to_string(s.covariance.rows()) + "x" +
-                                std::to_string(s.covariance.cols()) + ", expected " + std::to_string(expected) +
-                                " (3 + 2 x " + std::to_string(s.segments.size()) + " segments)");
+    throw InvalidInput(Reason::kMalformed, at + ": covariance is " + std::to_string(s.covariance.rows()) + "x" +
+                                               std::to_string(s.covariance.cols()) + ", expected " +
+                                               std::to_string(expected) + " (3 + 2 x " +
+                                               std::to_string(s.segments.size()) + " segments)");
   }
-  const std::string problem = covariance_problem(s.covariance, config_.snapshot_tolerance);
-  if (!problem.empty()) throw std::invalid_argument(at + ": covariance " + problem);
+  check_covariance(s.covariance, at + ": covariance");
 }
 
 // ---------------------------------------------------------------------------
@@ -353,11 +366,10 @@ MapCounts GlobalMap::counts() const {
 std::vector<FusionReport> GlobalMap::join_robot(int robot_id, const Pose2& x_WL, const Eigen::Matrix3d& covariance,
                                                 std::int64_t seq) {
   const std::string at = "join_robot(robot " + std::to_string(robot_id) + ")";
-  if (is_joined(robot_id)) throw std::invalid_argument(at + ": the robot has already joined");
-  if (seq < 0) throw std::invalid_argument(at + ": negative sequence number");
-  check_pose(x_WL, (at + ": x_WL").c_str());
-  const std::string problem = covariance_problem(covariance, config_.snapshot_tolerance);
-  if (!problem.empty()) throw std::invalid_argument(at + ": covariance " + problem);
+  if (is_joined(robot_id)) throw InvalidInput(Reason::kDuplicate, at + ": the robot has already joined");
+  if (seq < 0) throw InvalidInput(Reason::kOutOfRange, at + ": negative sequence number");
+  check_pose(x_WL, at + ": x_WL");
+  check_covariance(covariance, at + ": covariance");
 
   std::vector<FusionReport> out;
   const EntityId L = state_.add(EntityKind::kFrame, x_WL);
@@ -424,17 +436,16 @@ void GlobalMap::drain(int robot_id, std::vector<FusionReport>& out) {
 SightingResult GlobalMap::add_sighting(const RobotSighting& s) {
   const std::string at = "sighting of robot " + std::to_string(s.observed_id) + " by robot " +
                          std::to_string(s.observer_id);
-  if (s.observer_id == s.observed_id) throw std::invalid_argument(at + ": a robot cannot sight itself");
-  if (s.observer_seq < 0 || s.observed_seq < 0) throw std::invalid_argument(at + ": negative sequence number");
-  check_pose(s.x_LA, (at + ": x_LA").c_str());
-  check_pose(s.x_AB, (at + ": x_AB").c_str());
-  check_pose(s.x_LB, (at + ": x_LB").c_str());
-  for (const auto& [cov, name] : {std::pair<const Eigen::Matrix3d*, const char*>{&s.cov_LA, "cov_LA"},
-                                  {&s.cov_AB, "cov_AB"},
-                                  {&s.cov_LB, "cov_LB"}}) {
-    const std::string problem = covariance_problem(*cov, config_.snapshot_tolerance);
-    if (!problem.empty()) throw std::invalid_argument(at + ": " + name + " " + problem);
+  if (s.observer_id == s.observed_id) throw InvalidInput(Reason::kMalformed, at + ": a robot cannot sight itself");
+  if (s.observer_seq < 0 || s.observed_seq < 0) {
+    throw InvalidInput(Reason::kOutOfRange, at + ": negative sequence number");
   }
+  check_pose(s.x_LA, at + ": x_LA");
+  check_pose(s.x_AB, at + ": x_AB");
+  check_pose(s.x_LB, at + ": x_LB");
+  check_covariance(s.cov_LA, at + ": cov_LA");
+  check_covariance(s.cov_AB, at + ": cov_AB");
+  check_covariance(s.cov_LB, at + ": cov_LB");
 
   SightingResult result;
   if (is_joined(s.observed_id)) {
@@ -508,10 +519,10 @@ void GlobalMap::resolve_sightings(std::vector<FusionReport>& out) {
 std::vector<FusionReport> GlobalMap::fuse(const LocalMapSnapshot& snapshot) {
   validate(snapshot);
   if (has_fused(snapshot.robot_id, snapshot.seq)) {
-    throw std::invalid_argument(where(snapshot.robot_id, snapshot.seq) + ": already fused");
+    throw InvalidInput(Reason::kDuplicate, where(snapshot.robot_id, snapshot.seq) + ": already fused");
   }
   if (is_queued(snapshot.robot_id, snapshot.seq)) {
-    throw std::invalid_argument(where(snapshot.robot_id, snapshot.seq) + ": already queued");
+    throw InvalidInput(Reason::kDuplicate, where(snapshot.robot_id, snapshot.seq) + ": already queued");
   }
   std::vector<FusionReport> out;
   RobotRecord& rec = robot(snapshot.robot_id);

@@ -27,8 +27,8 @@
 //
 // Failure: bad input (a snapshot with wrong sizes, NaN/inf, an asymmetric or
 // indefinite covariance, a (robot, seq) already fused or queued; a bad pose or
-// covariance in join/sighting) throws std::invalid_argument and leaves the map
-// unchanged. Not thread-safe: one caller (the server's fusion worker) at a time.
+// covariance in join/sighting) throws InvalidInput (a std::invalid_argument)
+// and leaves the map unchanged. Not thread-safe: one caller (the server's fusion worker) at a time.
 // Pure and synchronous; the only clock is std::chrono::steady_clock, read to
 // fill FusionReport::time and never used for a decision.
 #pragma once
@@ -38,6 +38,8 @@
 #include <map>
 #include <optional>
 #include <set>
+#include <stdexcept>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -50,6 +52,25 @@
 #include "lmf/spmap/segment_ops.hpp"
 
 namespace lmf::fusion {
+
+// What join_robot(), add_sighting() and fuse() throw for bad input: a
+// std::invalid_argument that also says which kind of problem it is, so a caller
+// can count rejections by reason without parsing the message.
+class InvalidInput : public std::invalid_argument {
+ public:
+  enum class Reason {
+    kMalformed,         // wrong sizes, a robot sighting itself
+    kNonFinite,         // NaN or inf
+    kOutOfRange,        // negative sequence number, non-positive length, beyond max_coordinate_m
+    kNotSymmetricPsd,   // a covariance that is not symmetric positive semidefinite
+    kDuplicate,         // (robot, seq) already fused or queued; robot already joined
+  };
+  InvalidInput(Reason reason, const std::string& what) : std::invalid_argument(what), reason_(reason) {}
+  Reason reason() const { return reason_; }
+
+ private:
+  Reason reason_;
+};
 
 // How much the fusion checks P afterwards (FusionReport::min_ldlt_pivot/min_eigenvalue).
 enum class HealthCheck {
@@ -228,7 +249,7 @@ class GlobalMap {
   // per local map fused by this call (empty when queued), in fusion order.
   std::vector<FusionReport> fuse(const LocalMapSnapshot& snapshot);
 
-  // Throws std::invalid_argument describing what is wrong with the snapshot.
+  // Throws InvalidInput describing what is wrong with the snapshot.
   void validate(const LocalMapSnapshot& snapshot) const;
 
   bool is_joined(int robot_id) const;
@@ -281,7 +302,8 @@ class GlobalMap {
   void retire_frames(int robot_id, std::vector<EntityId>& removals);
   void extend_to_cover(EntityId segment, const spmap::Interval& interval);
   bool is_submap(EntityId frame) const;
-  void check_pose(const Pose2& pose, const char* what) const;
+  void check_pose(const Pose2& pose, const std::string& what) const;
+  void check_covariance(const Eigen::MatrixXd& P, const std::string& what) const;
 
   GlobalMapConfig config_;
   GlobalState state_;

@@ -410,32 +410,47 @@ TEST(GlobalMapTest, InvalidSnapshotsAreRejectedAndTheMapIsUnchanged) {
   const LocalMapSnapshot good = synthetic::make_snapshot(0, 1, step, step, walls);
   const double nan = std::numeric_limits<double>::quiet_NaN();
 
-  std::vector<std::pair<std::string, LocalMapSnapshot>> bad;
-  auto variant = [&](const std::string& name, auto&& edit) {
+  using Reason = InvalidInput::Reason;
+  struct Bad {
+    std::string name;
+    Reason reason;
+    LocalMapSnapshot snapshot;
+  };
+  std::vector<Bad> bad;
+  auto variant = [&](const std::string& name, Reason reason, auto&& edit) {
     LocalMapSnapshot s = good;
     edit(s);
-    bad.emplace_back(name, s);
+    bad.push_back({name, reason, s});
   };
-  variant("NaN robot pose", [&](LocalMapSnapshot& s) { s.x_LR.y = nan; });
-  variant("inf segment", [&](LocalMapSnapshot& s) { s.segments[2].location.x = std::numeric_limits<double>::infinity(); });
-  variant("NaN covariance", [&](LocalMapSnapshot& s) { s.covariance(4, 4) = nan; });
-  variant("zero length", [&](LocalMapSnapshot& s) { s.segments[1].length_m = 0.0; });
-  variant("covariance too small", [&](LocalMapSnapshot& s) { s.covariance = s.covariance.topLeftCorner(9, 9).eval(); });
-  variant("not square", [&](LocalMapSnapshot& s) { s.covariance = Eigen::MatrixXd::Zero(11, 10); });
-  variant("extra segment", [&](LocalMapSnapshot& s) { s.segments.push_back(s.segments[0]); });
-  variant("asymmetric", [&](LocalMapSnapshot& s) { s.covariance(3, 5) += 1e-3; });
-  variant("indefinite", [&](LocalMapSnapshot& s) { s.covariance(4, 4) = -0.01; });
-  variant("negative eigenvalue", [&](LocalMapSnapshot& s) {
+  variant("NaN robot pose", Reason::kNonFinite, [&](LocalMapSnapshot& s) { s.x_LR.y = nan; });
+  variant("inf segment", Reason::kNonFinite,
+          [&](LocalMapSnapshot& s) { s.segments[2].location.x = std::numeric_limits<double>::infinity(); });
+  variant("NaN covariance", Reason::kNonFinite, [&](LocalMapSnapshot& s) { s.covariance(4, 4) = nan; });
+  variant("far away", Reason::kOutOfRange, [&](LocalMapSnapshot& s) { s.segments[0].location.y = 1e9; });
+  variant("zero length", Reason::kOutOfRange, [&](LocalMapSnapshot& s) { s.segments[1].length_m = 0.0; });
+  variant("covariance too small", Reason::kMalformed,
+          [&](LocalMapSnapshot& s) { s.covariance = s.covariance.topLeftCorner(9, 9).eval(); });
+  variant("not square", Reason::kMalformed, [&](LocalMapSnapshot& s) { s.covariance = Eigen::MatrixXd::Zero(11, 10); });
+  variant("extra segment", Reason::kMalformed, [&](LocalMapSnapshot& s) { s.segments.push_back(s.segments[0]); });
+  variant("asymmetric", Reason::kNotSymmetricPsd, [&](LocalMapSnapshot& s) { s.covariance(3, 5) += 1e-3; });
+  variant("indefinite", Reason::kNotSymmetricPsd, [&](LocalMapSnapshot& s) { s.covariance(4, 4) = -0.01; });
+  variant("negative eigenvalue", Reason::kNotSymmetricPsd, [&](LocalMapSnapshot& s) {
     s.covariance(3, 5) = s.covariance(5, 3) = 2.0 * std::sqrt(s.covariance(3, 3) * s.covariance(5, 5));
   });
-  variant("already fused", [&](LocalMapSnapshot& s) { s.seq = 0; });
-  variant("negative seq", [&](LocalMapSnapshot& s) { s.seq = -1; });
+  variant("already fused", Reason::kDuplicate, [&](LocalMapSnapshot& s) { s.seq = 0; });
+  variant("negative seq", Reason::kOutOfRange, [&](LocalMapSnapshot& s) { s.seq = -1; });
 
   const Eigen::MatrixXd P = map.state().full_covariance();
   const std::vector<SegmentView> segments = map.segments();
   const CorrectedFrame frame = *map.corrected_frame(0);
-  for (const auto& [name, s] : bad) {
-    EXPECT_THROW(map.fuse(s), std::invalid_argument) << name;
+  for (const Bad& b : bad) {
+    const std::string& name = b.name;
+    EXPECT_THROW(map.fuse(b.snapshot), std::invalid_argument) << name;
+    try {
+      map.fuse(b.snapshot);
+    } catch (const InvalidInput& e) {
+      EXPECT_EQ(e.reason(), b.reason) << name << ": " << e.what();
+    }
     EXPECT_TRUE(matrices_near(map.state().full_covariance(), P, 0.0)) << name;
     EXPECT_EQ(map.segments().size(), segments.size()) << name;
     EXPECT_TRUE(is_near(map.corrected_frame(0)->x_WL, frame.x_WL, 0.0, 0.0)) << name;
