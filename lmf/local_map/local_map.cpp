@@ -102,9 +102,11 @@ ScanReport LocalMap::update(int64_t utime, const Pose2& odometry, const std::vec
     if (usable(e)) {
       usable_observations.push_back(e);
       // Step 2: the per-view model error on top of the fit's point noise.
+      const double end_angle = config_.observation_end_noise_m / e.length_m;
       usable_observations.back().covariance +=
           Eigen::Vector2d(config_.observation_lateral_noise_m * config_.observation_lateral_noise_m,
-                          config_.observation_angular_noise_rad * config_.observation_angular_noise_rad)
+                          config_.observation_angular_noise_rad * config_.observation_angular_noise_rad +
+                              end_angle * end_angle)
               .asDiagonal();
     } else {
       ++report.observations_rejected;

@@ -36,6 +36,8 @@ void LocalMapConfig::validate() const {
           observation_lateral_noise_m, "finite and >= 0");
   require(finite_nonnegative(observation_angular_noise_rad), "observation_angular_noise_rad",
           observation_angular_noise_rad, "finite and >= 0");
+  require(finite_nonnegative(observation_end_noise_m), "observation_end_noise_m", observation_end_noise_m,
+          "finite and >= 0");
   require(probability(pairing_alpha), "pairing_alpha", pairing_alpha, "in (0, 1)");
   require(finite_nonnegative(overlap_gap_tolerance_m), "overlap_gap_tolerance_m", overlap_gap_tolerance_m,
           "finite and >= 0");

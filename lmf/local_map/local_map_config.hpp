@@ -35,6 +35,9 @@ struct LocalMapConfig {
   // walls are perfect lines (the simulator).
   double observation_lateral_noise_m = 0.03;    // std added to the lateral error (m, >= 0)
   double observation_angular_noise_rad = 0.02;  // std added to the angular error (rad, >= 0)
+  // A stray point or a clipped end moves a segment's end sideways; the angle
+  // error it causes shrinks with the length: angular std² += (end_noise / length)².
+  double observation_end_noise_m = 0.0;  // (m, >= 0)
 
   // --- Step 3: pairing an observation E with a map segment S.
   // Individual Mahalanobis test: d² < chi2inv(1 - pairing_alpha, 2). Loose on

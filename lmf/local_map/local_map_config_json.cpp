@@ -15,6 +15,7 @@ void read_local_map_config(io::JsonReader& reader, LocalMapConfig& config) {
   reader.read("odom_noise_floor_rad", config.odom_noise_floor_rad, io::non_negative());
   reader.read("observation_lateral_noise_m", config.observation_lateral_noise_m, io::non_negative());
   reader.read("observation_angular_noise_rad", config.observation_angular_noise_rad, io::non_negative());
+  reader.read("observation_end_noise_m", config.observation_end_noise_m, io::non_negative());
   reader.read("pairing_alpha", config.pairing_alpha, io::in_open(0.0, 1.0));
   reader.read("overlap_gap_tolerance_m", config.overlap_gap_tolerance_m, io::non_negative());
   reader.read("joint_alpha", config.joint_alpha, io::in_open(0.0, 1.0));

@@ -26,6 +26,7 @@ TEST(LocalMapConfigJson, ReadsKnownKeysAndTheExtractionSection) {
   io::JsonReader reader = io::JsonReader::from_string(
       R"({"ship_distance_m": 12.5, "constraints_enabled": false, "max_segments": 40,
           "observation_angular_noise_rad": 0.0, "joint_compatibility_restarts": 0,
+          "observation_end_noise_m": 0.04,
           "extraction": {"split_distance_m": 0.08}})",
       "test.json");
   LocalMapConfig config;
@@ -36,6 +37,7 @@ TEST(LocalMapConfigJson, ReadsKnownKeysAndTheExtractionSection) {
   EXPECT_EQ(config.max_segments, 40u);
   EXPECT_EQ(config.observation_angular_noise_rad, 0.0);
   EXPECT_EQ(config.joint_compatibility_restarts, 0u);
+  EXPECT_EQ(config.observation_end_noise_m, 0.04);
   EXPECT_EQ(config.extraction.split_distance_m, 0.08);
   EXPECT_EQ(config.pairing_alpha, LocalMapConfig{}.pairing_alpha);  // absent: default
 }
@@ -46,7 +48,14 @@ TEST(LocalMapConfigJson, RejectsUnknownKeysAndBadValuesByName) {
   EXPECT_NE(error_of(R"({"max_segments": -3})").find("max_segments"), std::string::npos);
   EXPECT_NE(error_of(R"({"extraction": {"min_points": 1}})").find("min_points"), std::string::npos);
   EXPECT_NE(error_of(R"({"extraction": {"bogus": 1}})").find("bogus"), std::string::npos);
+  EXPECT_NE(error_of(R"({"observation_end_noise_m": -0.1})").find("observation_end_noise_m"), std::string::npos);
   EXPECT_EQ(error_of(R"({})"), "no exception");
+}
+
+TEST(LocalMapConfigJson, ShippedConfigFilesLoad) {
+  const LocalMapConfig sim = load_local_map_config(LMF_SOURCE_DIR "/tools/lmf_nees_sim.json");
+  EXPECT_EQ(sim.extraction.split_distance_m, 0.1);
+  EXPECT_EQ(sim.observation_end_noise_m, 0.04);
 }
 
 }  // namespace
