@@ -415,8 +415,9 @@ void LocalMap::apply_constraints(const std::vector<EntityId>& added, ScanReport&
   }
   if (candidates.empty()) return;
 
-  std::stable_sort(candidates.begin(), candidates.end(),
-                   [](const ConstraintCandidate& x, const ConstraintCandidate& y) { return x.distance2 < y.distance2; });
+  std::stable_sort(candidates.begin(), candidates.end(), [](const ConstraintCandidate& x, const ConstraintCandidate& y) {
+    return x.distance2 < y.distance2;
+  });
   std::vector<spmap::ImplicitMeasurement> measurements;
   measurements.reserve(candidates.size());
   for (ConstraintCandidate& c : candidates) measurements.push_back(std::move(c.measurement));
@@ -489,8 +490,10 @@ LocalMapSnapshot LocalMap::snapshot() const {
   const Eigen::Index n = static_cast<Eigen::Index>(rows.size());
   out.covariance.resize(n, n);
   const Eigen::MatrixXd& P = map_.covariance();
-  for (Eigen::Index j = 0; j < n; ++j) {
-    for (Eigen::Index i = 0; i < n; ++i) out.covariance(i, j) = P(rows[static_cast<std::size_t>(i)], rows[static_cast<std::size_t>(j)]);
+  for (std::size_t j = 0; j < rows.size(); ++j) {
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      out.covariance(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = P(rows[i], rows[j]);
+    }
   }
   out.scan_poses = scan_poses_;
   return out;
