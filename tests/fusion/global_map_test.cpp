@@ -358,6 +358,58 @@ TEST(GlobalMapTest, SightingWaitsForItsObserver) {
   EXPECT_THROW(map.join_robot(2, Pose2()), std::invalid_argument);
 }
 
+TEST(GlobalMapTest, LateSightingsUseTheSubmapCopyOrTheFrameHistory) {
+  GlobalMap map(checked_config());
+  const std::vector<Wall> walls = synthetic::room(0.0, 0.0, 8.0, 6.0);
+  const Pose2 step(1.0, 0.5, 0.2);
+  // Robot 0: map 0 makes a submap (a copy of its frame 0); maps 1 and 2 only
+  // re-observe, so frame 1 survives only in the history.
+  Pose2 x_WL;
+  for (int seq = 0; seq < 3; ++seq) {
+    map.fuse(synthetic::make_snapshot(0, seq, x_WL, step, walls));
+    x_WL = compose(x_WL, step);
+  }
+  EXPECT_EQ(map.counts().submaps, 1);
+  auto sighting = [&](int observed, std::int64_t observer_seq, const Pose2& x_WLA) {
+    RobotSighting s;
+    s.observer_id = 0;
+    s.observed_id = observed;
+    s.observer_seq = observer_seq;
+    s.x_LA = Pose2(0.2, 0.0, 0.0);
+    s.x_AB = Pose2(1.0, 0.5, 0.3);
+    s.cov_AB = Eigen::Vector3d(0.01, 0.01, 0.001).asDiagonal();
+    const SightingResult r = map.add_sighting(s);
+    const Pose2 expected = compose(compose(x_WLA, s.x_LA), s.x_AB);  // x_LB = 0: B's frame is B
+    EXPECT_TRUE(is_near(map.corrected_frame(observed)->x_WL, expected, 1e-9, 1e-9));
+    return r.status;
+  };
+  EXPECT_EQ(sighting(1, 0, Pose2()), SightingStatus::kJoined);                // the submap of map 0
+  EXPECT_EQ(sighting(2, 1, step), SightingStatus::kJoinedApproximately);     // history
+  EXPECT_EQ(sighting(3, 3, x_WL), SightingStatus::kJoined);                  // the current frame
+  EXPECT_GE(min_eigenvalue(map), -1e-12);
+  // A sighting of the future (observer not there yet) waits.
+  RobotSighting future;
+  future.observer_id = 0;
+  future.observed_id = 4;
+  future.observer_seq = 7;
+  EXPECT_EQ(map.add_sighting(future).status, SightingStatus::kPending);
+  EXPECT_FALSE(map.is_joined(4));
+}
+
+TEST(GlobalMapTest, AnEmptyLocalMapOnlyMovesTheFrame) {
+  GlobalMap map(checked_config());
+  map.fuse(synthetic::make_snapshot(0, 0, Pose2(), Pose2(1.0, 0.0, 0.1), synthetic::room(0.0, 0.0, 6.0, 4.0)));
+  const MapCounts before = map.counts();
+  const LocalMapSnapshot empty = synthetic::make_snapshot(0, 1, Pose2(1.0, 0.0, 0.1), Pose2(2.0, 0.0, 0.0), {});
+  ASSERT_EQ(empty.covariance.rows(), 3);
+  const FusionReport r = map.fuse(empty)[0];
+  EXPECT_EQ(r.pairs_considered, 0);
+  EXPECT_FALSE(r.new_submap.has_value());
+  EXPECT_EQ(r.size_after.state_dimension, before.state_dimension);
+  EXPECT_TRUE(is_near(map.corrected_frame(0)->x_WL, compose(Pose2(1.0, 0.0, 0.1), Pose2(2.0, 0.0, 0.0)), 1e-12,
+                      1e-12));
+}
+
 TEST(GlobalMapTest, LateLocalMapsAreAnchoredBackwards) {
   GlobalMap map(checked_config());
   const std::vector<Wall> walls = synthetic::room(0.0, 0.0, 10.0, 8.0, 2);
