@@ -232,8 +232,9 @@ TEST(GlobalMapTest, GlobalSegmentsMatchingOneLocalSegmentAreFused) {
   EXPECT_EQ(r.pairings_accepted, 8);
   EXPECT_EQ(r.global_segments_fused, 4);
   EXPECT_EQ(r.size_after.segments, 4);
+  const std::vector<SegmentView> segments = map.segments();
   for (const Wall& w : whole) {
-    const SegmentView* s = find_segment(map.segments(), w, 1e-6, 1e-6);
+    const SegmentView* s = find_segment(segments, w, 1e-6, 1e-6);
     ASSERT_NE(s, nullptr);
     EXPECT_NEAR(s->length_m, w.length_m, 1e-6);  // extended over the gap and the whole wall
     EXPECT_NEAR(between(w.x_WS, s->x_WS).x, 0.0, 1e-6);
