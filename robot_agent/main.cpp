@@ -4,11 +4,13 @@
 #include <cstdint>
 #include <exception>
 #include <iostream>
+#include <sstream>
 #include <string>
 
 #include <boost/program_options.hpp>
 
 #include "lmf/mission/config_file.hpp"
+#include "lmf/mission/offline_mission.hpp"
 #include "robot_agent/agent_node.hpp"
 #include "runtime/bus.hpp"
 #include "runtime/event_loop.hpp"
@@ -60,10 +62,14 @@ int main(int argc, char** argv) {
   loop.run();
   agent.publish_status();
   const auto& c = agent.counters();
-  std::cerr << kProgram << " " << robot_id << ": stopped; " << c.scans_processed << " scans, " << c.maps_shipped
+  const lmf::mission::TimingStats timing = lmf::mission::timing_stats(agent.scan_times_ms());
+  std::ostringstream summary;  // one write, so agents sharing a terminal do not interleave
+  summary << kProgram << " " << robot_id << ": stopped; " << c.scans_processed << " scans, " << c.maps_shipped
             << " local maps shipped, " << c.maps_acknowledged << " acknowledged, " << c.map_resends << " resends, "
             << agent.rejects().total() << " messages rejected"
             << (agent.mission_done() ? ", mission done" : agent.mission_ended() ? ", mission end received" : "")
-            << "\n";
+            << "; per-scan time p50 " << timing.p50_ms << " ms, p99 " << timing.p99_ms << " ms, max " << timing.max_ms
+            << " ms\n";
+  std::cerr << summary.str() << std::flush;
   return 0;
 }
