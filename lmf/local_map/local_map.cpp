@@ -166,7 +166,7 @@ std::vector<LocalMap::Candidate> LocalMap::pair_observations(const std::vector<O
   // rows would certainly survive the careful inversion and d² is clearly above
   // the threshold, the pairing is rejected here, with the decision the full
   // spmap::individual_compatibility would take. Everything else goes through it.
-  const Eigen::MatrixXd& P = map_.covariance();
+  const auto P = map_.covariance();  // a view of P: no copy
   const Eigen::Index ro = map_.entity(robot_).offset;
   const Eigen::Matrix3d P_RR = P.block<3, 3>(ro, ro);
   const double tolerance = config_.careful_inverse_tolerance;
@@ -489,7 +489,7 @@ LocalMapSnapshot LocalMap::snapshot() const {
   }
   const Eigen::Index n = static_cast<Eigen::Index>(rows.size());
   out.covariance.resize(n, n);
-  const Eigen::MatrixXd& P = map_.covariance();
+  const auto P = map_.covariance();  // a view of P: no copy
   for (std::size_t j = 0; j < rows.size(); ++j) {
     for (std::size_t i = 0; i < rows.size(); ++i) {
       out.covariance(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = P(rows[i], rows[j]);

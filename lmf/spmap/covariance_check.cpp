@@ -16,7 +16,7 @@ std::string CovarianceHealth::describe() const {
   return out.str();
 }
 
-CovarianceHealth check_covariance(const Eigen::MatrixXd& P, double tolerance) {
+CovarianceHealth check_covariance(const Eigen::Ref<const Eigen::MatrixXd>& P, double tolerance) {
   CovarianceHealth health;
   if (P.rows() != P.cols() || !P.allFinite()) {
     health.symmetric = false;

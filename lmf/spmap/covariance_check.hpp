@@ -17,6 +17,6 @@ struct CovarianceHealth {
 };
 
 // PSD means min_eigenvalue >= -tolerance * max(1, max |P_ii|).
-CovarianceHealth check_covariance(const Eigen::MatrixXd& P, double tolerance = 1e-9);
+CovarianceHealth check_covariance(const Eigen::Ref<const Eigen::MatrixXd>& P, double tolerance = 1e-9);
 
 }  // namespace lmf::spmap

@@ -128,7 +128,7 @@ ImplicitMeasurement measurement_from_chain(const std::vector<ChainLink>& links, 
 }
 
 Eigen::MatrixXd gather_PHt(const StochasticMap& map, const std::vector<ImplicitMeasurement>& measurements) {
-  const Eigen::MatrixXd& P = map.covariance();
+  const StochasticMap::CovarianceView P = map.covariance();
   Eigen::MatrixXd PHt = Eigen::MatrixXd::Zero(P.rows(), total_rows(measurements));
   Eigen::Index col = 0;
   for (const ImplicitMeasurement& m : measurements) {
@@ -246,7 +246,7 @@ std::vector<std::size_t> incremental_joint_compatibility(const StochasticMap& ma
   return kept;
 }
 
-void mirror_lower_to_upper(Eigen::MatrixXd& P) {
+void mirror_lower_to_upper(Eigen::Ref<Eigen::MatrixXd> P) {
   if (P.rows() != P.cols()) throw std::invalid_argument("mirror_lower_to_upper: matrix is not square");
   // Block transposes: a column-by-column mirror reads rows with stride n and
   // costs more than the rank-k update itself on a large P.
@@ -292,7 +292,7 @@ UpdateReport ekf_update(StochasticMap& map, const std::vector<ImplicitMeasuremen
 
   // P ← P - W (P Hᵀ)ᵀ: a rank-k update of the lower triangle only (DESIGN §5.3),
   // then mirrored so both triangles stay valid.
-  Eigen::MatrixXd& P = map.mutable_covariance();
+  StochasticMap::MutableCovarianceView P = map.mutable_covariance();
   P.triangularView<Eigen::Lower>() -= W * PHt_k.transpose();
   mirror_lower_to_upper(P);
 

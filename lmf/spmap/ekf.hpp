@@ -90,8 +90,9 @@ struct UpdateReport {
 };
 
 // Copies the lower triangle of the square matrix P onto its upper triangle
-// (cache-blocked; used after a lower-triangle rank-k update).
-void mirror_lower_to_upper(Eigen::MatrixXd& P);
+// (cache-blocked; used after a lower-triangle rank-k update). Takes a dense
+// matrix or a block of one, e.g. StochasticMap::mutable_covariance().
+void mirror_lower_to_upper(Eigen::Ref<Eigen::MatrixXd> P);
 
 // One EKF update with all measurements (eq. 9): p̂ = -W ĥ over the kept rows,
 // P ← P - W H P, then p̂ is folded into every location and reset to 0. The

@@ -1,6 +1,8 @@
 #include "lmf/spmap/stochastic_map.hpp"
 
+#include <algorithm>
 #include <cassert>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 
@@ -9,6 +11,9 @@ namespace {
 
 std::string id_text(EntityId id) { return "entity " + std::to_string(id); }
 
+// Smallest buffer allocated by the first addition (rows/columns).
+constexpr Eigen::Index kMinCapacity = 32;
+
 }  // namespace
 
 EntityId StochasticMap::add(EntityKind kind, const Pose2& location, std::optional<EntityId> parent,
@@ -16,8 +21,13 @@ EntityId StochasticMap::add(EntityKind kind, const Pose2& location, std::optiona
   if (parent && !contains(*parent)) {
     throw std::invalid_argument("StochasticMap::add: unknown parent " + id_text(*parent));
   }
-  const Eigen::Index n = P_.rows();
+  const Eigen::Index n = n_;
   const Eigen::Index d = dof(kind);
+  if (n + d > capacity()) {
+    // Geometric growth: a reallocation and copy of P every few additions, not
+    // at every one (amortised O(n) per addition instead of O(n²)).
+    reserve(std::max({n + d, capacity() + capacity() / 2, kMinCapacity}));
+  }
   Entity e;
   e.id = next_id_++;
   e.kind = kind;
@@ -26,10 +36,11 @@ EntityId StochasticMap::add(EntityKind kind, const Pose2& location, std::optiona
   e.parent = parent;
   e.offset = n;
   // New rows/columns start at zero: the entity is known exactly until a caller
-  // (prediction, replace_perturbation, the augmentation) says otherwise.
-  P_.conservativeResize(n + d, n + d);
-  P_.rightCols(d).setZero();
-  P_.bottomRows(d).setZero();
+  // (prediction, replace_perturbation, the augmentation) says otherwise. The
+  // spare part of the buffer may hold stale values from removed entities.
+  P_.block(0, n, n + d, d).setZero();
+  P_.block(n, 0, d, n).setZero();
+  n_ = n + d;
   index_.emplace(e.id, entities_.size());
   entities_.push_back(e);
   return e.id;
@@ -43,19 +54,25 @@ void StochasticMap::remove(EntityId id) {
                                   id_text(e.id));
     }
   }
-  const Eigen::Index n = P_.rows();
+  const Eigen::Index n = n_;
   const Eigen::Index off = entities_[i].offset;
   const Eigen::Index d = dof(entities_[i].kind);
-  const Eigen::Index tail = n - off - d;
-  // Compact P in place: move the trailing block up-left over the removed rows.
-  // Each move only reads from indices >= the ones it writes, row- and
-  // column-wise, so going top-left to bottom-right never overwrites unread data.
-  if (tail > 0) {
-    P_.block(0, off, off, tail) = P_.block(0, off + d, off, tail).eval();
-    P_.block(off, 0, tail, off) = P_.block(off + d, 0, tail, off).eval();
-    P_.block(off, off, tail, tail) = P_.block(off + d, off + d, tail, tail).eval();
+  const Eigen::Index m = n - d;
+  // Compact P in place, one column at a time in increasing order: column j of
+  // the result is old column j (j < off) or j + d (j >= off) without rows
+  // [off, off + d). A write to column j never touches a column still to be
+  // read (those are > j), and within a column the rows move up (memmove).
+  const Eigen::Index stride = P_.rows();  // column-major, outer stride = capacity
+  double* data = P_.data();
+  const auto bytes = [](Eigen::Index count) { return static_cast<std::size_t>(count) * sizeof(double); };
+  for (Eigen::Index j = 0; j < m; ++j) {
+    const Eigen::Index src = j < off ? j : j + d;
+    double* dst_col = data + j * stride;
+    const double* src_col = data + src * stride;
+    if (src != j) std::memcpy(dst_col, src_col, bytes(off));  // different columns: no overlap
+    std::memmove(dst_col + off, src_col + off + d, bytes(m - off));
   }
-  P_.conservativeResize(n - d, n - d);
+  n_ = m;
 
   entities_.erase(entities_.begin() + static_cast<std::ptrdiff_t>(i));
   index_.erase(id);
@@ -85,6 +102,15 @@ Eigen::MatrixXd StochasticMap::block(EntityId a, EntityId b) const {
   return P_.block(ea.offset, eb.offset, dof(ea.kind), dof(eb.kind));
 }
 
+void StochasticMap::reserve(Eigen::Index dimension) {
+  if (dimension <= capacity()) return;
+  // The spare part is zeroed once here so the buffer never holds
+  // uninitialised values (copies of the map copy the whole buffer).
+  Eigen::MatrixXd grown = Eigen::MatrixXd::Zero(dimension, dimension);
+  grown.topLeftCorner(n_, n_) = P_.topLeftCorner(n_, n_);
+  P_.swap(grown);
+}
+
 Pose2 StochasticMap::root_location(EntityId id) const {
   const Entity* e = &entity(id);
   Pose2 x = e->location;
@@ -103,7 +129,7 @@ void StochasticMap::replace_perturbation(EntityId target, const std::vector<Line
   const Entity& t = entity(target);
   const Eigen::Index off_t = t.offset;
   const Eigen::Index d_t = dof(t.kind);
-  const Eigen::Index n = P_.rows();
+  const Eigen::Index n = n_;
 
   struct Resolved {
     Eigen::Index offset;
@@ -125,12 +151,12 @@ void StochasticMap::replace_perturbation(EntityId target, const std::vector<Line
   // rows/columns change: P'(t, :) = G = Σ J_i P(e_i, :) off the diagonal block,
   // P'(t, t) = Σ_j G(:, e_j) J_jᵀ. Both use the old P (terms may include t).
   Eigen::MatrixXd G = Eigen::MatrixXd::Zero(d_t, n);
-  for (const Resolved& r : resolved) G.noalias() += *r.J * P_.middleRows(r.offset, r.J->cols());
+  for (const Resolved& r : resolved) G.noalias() += *r.J * P_.block(r.offset, 0, r.J->cols(), n);
   Eigen::MatrixXd G_tt = Eigen::MatrixXd::Zero(d_t, d_t);
   for (const Resolved& r : resolved) G_tt.noalias() += G.middleCols(r.offset, r.J->cols()) * r.J->transpose();
 
-  P_.middleRows(off_t, d_t) = G;
-  P_.middleCols(off_t, d_t) = G.transpose();
+  P_.block(off_t, 0, d_t, n) = G;
+  P_.block(0, off_t, n, d_t) = G.transpose();
   P_.block(off_t, off_t, d_t, d_t) = 0.5 * (G_tt + G_tt.transpose());
 }
 
@@ -145,7 +171,7 @@ EntityId StochasticMap::add_copy(EntityId source) {
 void StochasticMap::clear() {
   entities_.clear();
   index_.clear();
-  P_.resize(0, 0);
+  n_ = 0;  // the buffer is kept: the next local map grows to a similar size
 }
 
 std::size_t StochasticMap::index_of(EntityId id) const {

@@ -4,6 +4,9 @@
 // The robot local map uses it with root L (robot and segments children of the
 // root); the global map with root W (frames children of the root, segments
 // children of their submap frame). P is kept symmetric (both triangles valid).
+// P lives in the top-left n x n corner of a larger buffer that grows
+// geometrically, so adding an entity costs O(n), not a reallocation and a copy
+// of P; covariance() is a view of that corner.
 // Not thread-safe; all methods are synchronous.
 #pragma once
 
@@ -32,13 +35,21 @@ struct Entity {
 
 class StochasticMap {
  public:
+  // Views of the n x n covariance P (n = dimension()) inside the spare-capacity
+  // buffer: column-major with an outer stride of the capacity. Use `auto` or
+  // these types to avoid a copy; binding one to `const Eigen::MatrixXd&` or
+  // assigning it to a MatrixXd makes an n x n copy.
+  using CovarianceView = Eigen::Block<const Eigen::MatrixXd>;
+  using MutableCovarianceView = Eigen::Block<Eigen::MatrixXd>;
+
   // Appends an entity with zero covariance (rows/columns of P set to 0).
+  // Amortised O(n): the buffer grows geometrically when it is full.
   // Throws std::invalid_argument for an unknown parent.
   EntityId add(EntityKind kind, const Pose2& location, std::optional<EntityId> parent = std::nullopt,
                double length_m = 0.0);
 
-  // Removes the entity and its rows/columns of P (O(n²) compaction; the
-  // offsets of later entities shift). Throws std::invalid_argument if unknown
+  // Removes the entity and its rows/columns of P (O(n²) in-place compaction;
+  // the offsets of later entities shift; the capacity is kept). Throws std::invalid_argument if unknown
   // or if other entities still have it as parent.
   void remove(EntityId id);
 
@@ -50,9 +61,15 @@ class StochasticMap {
   const std::vector<Entity>& entities() const { return entities_; }  // state order
   std::vector<EntityId> children(std::optional<EntityId> parent) const;
 
-  Eigen::Index dimension() const { return P_.rows(); }
-  const Eigen::MatrixXd& covariance() const { return P_; }
-  Eigen::MatrixXd& mutable_covariance() { return P_; }
+  Eigen::Index dimension() const { return n_; }
+  // P (n x n). Assigning to mutable_covariance() writes into P: the right-hand
+  // side must be n x n.
+  CovarianceView covariance() const { return CovarianceView(P_, 0, 0, n_, n_); }
+  MutableCovarianceView mutable_covariance() { return MutableCovarianceView(P_, 0, 0, n_, n_); }
+  // Rows/columns the buffer holds before the next reallocation (>= dimension()).
+  Eigen::Index capacity() const { return P_.rows(); }
+  // Grows the buffer to at least `dimension` rows/columns (never shrinks).
+  void reserve(Eigen::Index dimension);
   // The block of P between two entities (dof(a) x dof(b)).
   Eigen::MatrixXd block(EntityId a, EntityId b) const;
 
@@ -77,7 +94,7 @@ class StochasticMap {
   // perturbation equals the source's: its rows of P copy the source's (perfect correlation).
   EntityId add_copy(EntityId source);
 
-  // Resets to an empty map. Ids keep counting: an id is never reused.
+  // Resets to an empty map (the capacity is kept). Ids keep counting: an id is never reused.
   void clear();
 
  private:
@@ -85,7 +102,8 @@ class StochasticMap {
 
   std::vector<Entity> entities_;
   std::unordered_map<EntityId, std::size_t> index_;  // id -> position in entities_
-  Eigen::MatrixXd P_;
+  Eigen::MatrixXd P_;    // capacity x capacity; P is its top-left n_ x n_ corner
+  Eigen::Index n_ = 0;   // dimension of P
   EntityId next_id_ = 0;
 };
 

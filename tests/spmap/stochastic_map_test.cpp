@@ -1,6 +1,7 @@
 #include "lmf/spmap/stochastic_map.hpp"
 
 #include <numbers>
+#include <random>
 #include <stdexcept>
 
 #include <gtest/gtest.h>
@@ -148,6 +149,74 @@ TEST(StochasticMap, AddCopyIsPerfectlyCorrelated) {
   const EntityId S_copy = map.add_copy(S);
   EXPECT_EQ(map.entity(S_copy).parent, L);
   EXPECT_DOUBLE_EQ(map.entity(S_copy).length_m, 2.0);
+}
+
+// The spare-capacity buffer must be invisible: after every addition (zero
+// rows), covariance edit and removal (at the front, middle and end), across
+// several reallocations, P equals a dense reference built by plain resizing;
+// stale values left in the spare part by removals never reappear.
+TEST(StochasticMap, SpareCapacityMatchesADenseReference) {
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int> coin(0, 2);
+  StochasticMap map;
+  Eigen::MatrixXd reference(0, 0);
+  std::vector<EntityId> ids;
+  Eigen::Index reallocations = 0;
+  for (int step = 0; step < 120; ++step) {
+    const bool remove_one = !ids.empty() && coin(rng) == 0;
+    if (remove_one) {
+      std::uniform_int_distribution<std::size_t> pick(0, ids.size() - 1);
+      const std::size_t k = step % 7 == 0 ? 0 : (step % 5 == 0 ? ids.size() - 1 : pick(rng));
+      const Entity e = map.entity(ids[k]);
+      map.remove(ids[k]);
+      reference = without(reference, e.offset, dof(e.kind));
+      ids.erase(ids.begin() + static_cast<std::ptrdiff_t>(k));
+    } else {
+      const EntityKind kind = coin(rng) == 0 ? EntityKind::kRobot : EntityKind::kSegment;
+      const Eigen::Index capacity_before = map.capacity();
+      ids.push_back(map.add(kind, Pose2(0.1 * step, 0.0, 0.0)));
+      if (map.capacity() != capacity_before) ++reallocations;
+      const Eigen::Index n = reference.rows();
+      reference.conservativeResize(map.dimension(), map.dimension());
+      reference.rightCols(map.dimension() - n).setZero();
+      reference.bottomRows(map.dimension() - n).setZero();
+      ASSERT_TRUE(matrices_near(map.covariance(), reference, 0.0)) << "new rows not zero at step " << step;
+      // Fill P with new values so removals leave non-zero stale data behind.
+      const Eigen::MatrixXd P = test::random_spd(map.dimension(), rng);
+      map.mutable_covariance() = P;
+      reference = P;
+    }
+    ASSERT_EQ(map.dimension(), reference.rows());
+    ASSERT_GE(map.capacity(), map.dimension());
+    ASSERT_TRUE(matrices_near(map.covariance(), reference, 0.0)) << "step " << step;
+    Eigen::Index offset = 0;
+    for (const Entity& e : map.entities()) {
+      ASSERT_EQ(e.offset, offset);
+      offset += dof(e.kind);
+    }
+  }
+  EXPECT_GE(reallocations, 2);  // the test crossed several growth boundaries
+
+  // An addition after removals sees zero rows, not the stale spare values.
+  map.remove(ids.back());
+  const EntityId fresh = map.add(EntityKind::kRobot, Pose2());
+  EXPECT_TRUE(matrices_near(map.block(fresh, fresh), Eigen::Matrix3d::Zero(), 0.0));
+  EXPECT_TRUE(map.covariance().bottomRows(3).isZero(0.0));
+  EXPECT_TRUE(map.covariance().rightCols(3).isZero(0.0));
+
+  // A copy is independent and equal; clear keeps the buffer and starts empty.
+  const StochasticMap copy = map;
+  EXPECT_TRUE(matrices_near(copy.covariance(), map.covariance(), 0.0));
+  const Eigen::Index capacity = map.capacity();
+  map.clear();
+  EXPECT_EQ(map.dimension(), 0);
+  EXPECT_EQ(map.capacity(), capacity);
+  const EntityId first = map.add(EntityKind::kSegment, Pose2());
+  EXPECT_TRUE(matrices_near(map.block(first, first), Eigen::Matrix2d::Zero(), 0.0));
+  EXPECT_EQ(copy.dimension(), copy.covariance().rows());
+  map.reserve(capacity + 10);
+  EXPECT_EQ(map.capacity(), capacity + 10);
+  EXPECT_TRUE(matrices_near(map.block(first, first), Eigen::Matrix2d::Zero(), 0.0));
 }
 
 }  // namespace
