@@ -2,13 +2,18 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include <boost/math/distributions/chi_squared.hpp>
 
 namespace lmf::spmap {
 namespace {
+
+// Bound of the per-thread chi2 quantile cache (entries of (dof, alpha)).
+constexpr std::size_t kMaxCachedQuantiles = 1024;
 
 Eigen::Index total_rows(const std::vector<ImplicitMeasurement>& measurements) {
   Eigen::Index m = 0;
@@ -193,8 +198,18 @@ double chi2_threshold(int dof, double alpha) {
   if (!(alpha > 0.0 && alpha < 1.0)) {
     throw std::invalid_argument("chi2_threshold: alpha must be in (0, 1), got " + std::to_string(alpha));
   }
+  // The quantile is an iterative root search (microseconds) and every pairing,
+  // joint-compatibility step and constraint asks again for the same few
+  // (dof, alpha): cache them. thread_local keeps it lock-free for processes
+  // that run a local map and a global map on different threads.
+  thread_local std::map<std::pair<int, double>, double> cache;
+  const std::pair<int, double> key{dof, alpha};
+  if (const auto it = cache.find(key); it != cache.end()) return it->second;
   const boost::math::chi_squared_distribution<double> chi2(static_cast<double>(dof));
-  return boost::math::quantile(boost::math::complement(chi2, alpha));
+  const double value = boost::math::quantile(boost::math::complement(chi2, alpha));
+  if (cache.size() >= kMaxCachedQuantiles) cache.clear();  // bounded: callers with ever-new alphas
+  cache.emplace(key, value);
+  return value;
 }
 
 CompatibilityTest individual_compatibility(const StochasticMap& map, const ImplicitMeasurement& m,

@@ -3,6 +3,7 @@
 #include <stdexcept>
 
 #include <Eigen/Dense>
+#include <boost/math/distributions/chi_squared.hpp>
 #include <gtest/gtest.h>
 
 #include "lmf/spmap/covariance_check.hpp"
@@ -55,6 +56,27 @@ TEST(Chi2Threshold, KnownQuantilesAndBadInput) {
   EXPECT_NEAR(chi2_threshold(4, 0.01), 13.276704135987622, 1e-9);
   EXPECT_THROW(chi2_threshold(0, 0.05), std::invalid_argument);
   EXPECT_THROW(chi2_threshold(2, 1.5), std::invalid_argument);
+}
+
+// chi2_threshold caches its quantiles: repeated and interleaved calls (more
+// keys than the cache holds, so it is also refilled) return the Boost value.
+TEST(Chi2Threshold, CachedValuesEqualTheQuantile) {
+  for (int round = 0; round < 2; ++round) {
+    for (int dof = 1; dof <= 60; ++dof) {
+      for (const double alpha : {0.001, 0.01, 0.05, 0.2}) {
+        const boost::math::chi_squared_distribution<double> chi2(static_cast<double>(dof));
+        const double expected = boost::math::quantile(boost::math::complement(chi2, alpha));
+        ASSERT_EQ(chi2_threshold(dof, alpha), expected) << "dof " << dof << " alpha " << alpha;
+      }
+    }
+  }
+  for (int k = 0; k < 1500; ++k) {  // more distinct keys than the cache bound
+    const double alpha = 0.001 + 1e-5 * k;
+    const boost::math::chi_squared_distribution<double> chi2(2.0);
+    ASSERT_EQ(chi2_threshold(2, alpha), boost::math::quantile(boost::math::complement(chi2, alpha)));
+  }
+  EXPECT_NEAR(chi2_threshold(2, 0.05), 5.991464547107979, 1e-9);
+  EXPECT_THROW(chi2_threshold(-1, 0.05), std::invalid_argument);
 }
 
 class LinearGaussian : public ::testing::Test {
