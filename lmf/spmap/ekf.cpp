@@ -214,11 +214,36 @@ double chi2_threshold(int dof, double alpha) {
 
 CompatibilityTest individual_compatibility(const StochasticMap& map, const ImplicitMeasurement& m,
                                            double alpha, double relative_tolerance) {
-  const std::vector<ImplicitMeasurement> one{m};
-  const Eigen::MatrixXd PHt = gather_PHt(map, one);
+  validate(map, m, "individual_compatibility");
+  const StochasticMap::CovarianceView P = map.covariance();
+  struct Touched {
+    Eigen::Index offset;
+    Eigen::Index dof;
+    const Eigen::MatrixXd* J;
+  };
+  std::vector<Touched> touched;
+  touched.reserve(m.blocks.size());
+  for (const JacobianBlock& b : m.blocks) touched.push_back({map.entity(b.entity).offset, b.J.cols(), &b.J});
+
+  // S = H P Hᵀ + R = Σ_a Σ_b J_a P_ab J_bᵀ + R from the few entity blocks H
+  // touches: no n x rows gather of P (the same S as innovation_covariance).
+  // The reference scale is the a == b part (innovation_reference_scale).
+  const Eigen::Index r = m.h.size();
+  Eigen::MatrixXd S = m.R;
+  Eigen::VectorXd uncorrelated = m.R.diagonal();
+  Eigen::MatrixXd JP(r, 3);
+  for (const Touched& b : touched) {
+    // JP = Σ_a J_a P_ab (r x dof(b)), then S += JP J_bᵀ.
+    auto JP_b = JP.leftCols(b.dof);
+    JP_b.setZero();
+    for (const Touched& a : touched) JP_b.noalias() += *a.J * P.block(a.offset, b.offset, a.dof, b.dof);
+    S.noalias() += JP_b * b.J->transpose();
+    uncorrelated += (*b.J * P.block(b.offset, b.offset, b.dof, b.dof)).cwiseProduct(*b.J).rowwise().sum();
+  }
+  S = 0.5 * (S + S.transpose()).eval();
+  const double scale = uncorrelated.size() > 0 ? std::max(0.0, uncorrelated.maxCoeff()) : 0.0;
   // Eq. (8): D² = ĥᵀ S⁻¹ ĥ with the careful inversion (DESIGN §6).
-  return compatibility(m.h, innovation_covariance(map, one, PHt), alpha, relative_tolerance,
-                       innovation_reference_scale(map, one));
+  return compatibility(m.h, S, alpha, relative_tolerance, scale);
 }
 
 std::vector<std::size_t> incremental_joint_compatibility(const StochasticMap& map,

@@ -1,5 +1,7 @@
 #include "lmf/spmap/ekf.hpp"
 
+#include <algorithm>
+#include <random>
 #include <stdexcept>
 
 #include <Eigen/Dense>
@@ -265,6 +267,48 @@ TEST(Compatibility, IndividualAcceptsConsistentRejectsOutlier) {
       individual_compatibility(exact, measurement_from_chain(chain_between(exact, A, B), {1, 2}), 0.05);
   EXPECT_EQ(t_exact.dof, 0);
   EXPECT_TRUE(t_exact.passed);
+}
+
+// individual_compatibility forms S from the touched entity blocks; it must
+// equal the dense textbook test H P Hᵀ + R (random correlated P, measurements
+// of 1-3 rows touching 1-4 entities of both kinds, with and without noise).
+TEST(Compatibility, IndividualMatchesDenseReference) {
+  std::mt19937 rng(21);
+  StochasticMap map;
+  std::vector<EntityId> ids;
+  for (int i = 0; i < 9; ++i) {
+    ids.push_back(map.add(i % 3 == 0 ? EntityKind::kRobot : EntityKind::kSegment, Pose2(), std::nullopt, 1.0));
+  }
+  map.mutable_covariance() = test::random_spd(map.dimension(), rng, 0.01);
+  std::uniform_int_distribution<int> rows_dist(1, 3);
+  std::uniform_int_distribution<std::size_t> entity_dist(0, ids.size() - 1);
+  for (int trial = 0; trial < 50; ++trial) {
+    ImplicitMeasurement m;
+    const int r = rows_dist(rng);
+    m.h = test::random_matrix(r, 1, rng) * 0.2;
+    std::vector<EntityId> used;
+    for (int k = 0; k < 1 + trial % 4; ++k) {
+      const EntityId e = ids[entity_dist(rng)];
+      if (std::find(used.begin(), used.end(), e) != used.end()) continue;
+      used.push_back(e);
+      m.blocks.push_back({e, test::random_matrix(r, dof(map.entity(e).kind), rng)});
+    }
+    m.R = trial % 3 == 0 ? Eigen::MatrixXd::Zero(r, r) : test::random_spd(r, rng, 1e-3);
+    const Eigen::MatrixXd H = dense_H(map, {m});
+    const Eigen::MatrixXd S = H * map.covariance() * H.transpose() + m.R;
+    const Eigen::MatrixXd S_sym = 0.5 * (S + S.transpose());
+    const CarefulInverse ci = careful_inverse(S_sym, 1e-9, innovation_reference_scale(map, {m}));
+    Eigen::VectorXd h_k(static_cast<Eigen::Index>(ci.kept.size()));
+    for (std::size_t i = 0; i < ci.kept.size(); ++i) h_k(static_cast<Eigen::Index>(i)) = m.h(ci.kept[i]);
+    const double d2 = h_k.dot(ci.inverse * h_k);
+    const CompatibilityTest t = individual_compatibility(map, m, 0.05);
+    EXPECT_EQ(t.dof, static_cast<int>(ci.kept.size())) << "trial " << trial;
+    EXPECT_NEAR(t.distance2, d2, 1e-9 * std::max(1.0, d2)) << "trial " << trial;
+    EXPECT_EQ(t.passed, t.dof == 0 || d2 < chi2_threshold(t.dof, 0.05)) << "trial " << trial;
+  }
+  ImplicitMeasurement bad = scalar_measurement(ids[0], 3, 0, 0.1, 0.1);
+  bad.blocks[0].J = Eigen::MatrixXd::Zero(1, 2);
+  EXPECT_THROW(individual_compatibility(map, bad, 0.05), std::invalid_argument);
 }
 
 TEST(Compatibility, JointRejectsIndividuallyPlausibleOutlier) {
