@@ -7,6 +7,7 @@
 #include <string>
 #include <utility>
 
+#include <Eigen/Cholesky>
 #include <boost/math/distributions/chi_squared.hpp>
 
 namespace lmf::spmap {
@@ -14,6 +15,13 @@ namespace {
 
 // Bound of the per-thread chi2 quantile cache (entries of (dof, alpha)).
 constexpr std::size_t kMaxCachedQuantiles = 1024;
+
+// incremental_joint_compatibility takes the block-inverse fast path only when
+// the lower bound on the smallest pivot, 1 / trace(S⁻¹), exceeds the careful
+// inversion's threshold by this factor, and a floor relative to the scale of S
+// (so a zero tolerance still leaves rounding-level pivots to the careful inversion).
+constexpr double kFastPathMargin = 4.0;
+constexpr double kFastPathFloor = 1e-12;
 
 Eigen::Index total_rows(const std::vector<ImplicitMeasurement>& measurements) {
   Eigen::Index m = 0;
@@ -48,6 +56,17 @@ Eigen::MatrixXd apply_H(const StochasticMap& map, const ImplicitMeasurement& m, 
     out.noalias() += b.J * X.middleRows(map.entity(b.entity).offset, b.J.cols());
   }
   return out;
+}
+
+// max_i (Σ_blocks J P_EE Jᵀ + R)_ii of one (validated) measurement, or 0.
+double reference_scale_of(const StochasticMap& map, const ImplicitMeasurement& m) {
+  Eigen::VectorXd diag = m.R.diagonal();
+  for (const JacobianBlock& b : m.blocks) {
+    const Entity& e = map.entity(b.entity);
+    const Eigen::Index d = b.J.cols();
+    diag += (b.J * map.covariance().block(e.offset, e.offset, d, d)).cwiseProduct(b.J).rowwise().sum();
+  }
+  return diag.size() > 0 ? std::max(0.0, diag.maxCoeff()) : 0.0;
 }
 
 // Distance ĥ_kᵀ S_k⁻¹ ĥ_k over the rows the careful inversion kept.
@@ -183,12 +202,7 @@ double innovation_reference_scale(const StochasticMap& map, const std::vector<Im
   double scale = 0.0;
   for (const ImplicitMeasurement& m : measurements) {
     validate(map, m, "innovation_reference_scale");
-    Eigen::VectorXd diag = m.R.diagonal();
-    for (const JacobianBlock& b : m.blocks) {
-      const Eigen::MatrixXd JP = b.J * map.block(b.entity, b.entity);
-      diag += JP.cwiseProduct(b.J).rowwise().sum();
-    }
-    if (diag.size() > 0) scale = std::max(scale, diag.maxCoeff());
+    scale = std::max(scale, reference_scale_of(map, m));
   }
   return scale;
 }
@@ -249,39 +263,116 @@ CompatibilityTest individual_compatibility(const StochasticMap& map, const Impli
 std::vector<std::size_t> incremental_joint_compatibility(const StochasticMap& map,
                                                          const std::vector<ImplicitMeasurement>& candidates,
                                                          double alpha, double relative_tolerance) {
+  for (const ImplicitMeasurement& m : candidates) validate(map, m, "incremental_joint_compatibility");
+  const StochasticMap::CovarianceView P = map.covariance();
+  const Eigen::Index total = total_rows(candidates);
+
+  // The accepted set grows one candidate at a time. Buffers sized for "all
+  // kept": columns/rows [0, a) belong to the accepted set, [a, a + r) to the
+  // candidate under test; a rejected candidate's slot is simply overwritten.
+  Eigen::MatrixXd PHt(map.dimension(), total);  // P H_accᵀ, then the candidate's gather
+  Eigen::MatrixXd S(total, total);              // joint innovation covariance
+  Eigen::VectorXd h(total);                     // stacked ĥ
+  // S_acc⁻¹ while the careful inversion of the accepted set kept every row
+  // (always, unless a perfect constraint repeats what the set already says).
+  Eigen::MatrixXd S_inv(total, total);
+  bool have_inverse = true;    // the empty set
+  double distance_acc = 0.0;   // ĥ_accᵀ S_acc⁻¹ ĥ_acc
+  double trace_acc = 0.0;      // trace(S_acc⁻¹)
+  double scale_acc = 0.0;      // reference scale of the accepted set
+  double diagonal_acc = 0.0;   // largest |S_ii| of the accepted set
+
   std::vector<std::size_t> kept;
-  // The accepted set grows one candidate at a time; its P Hᵀ, S and ĥ are
-  // extended, never recomputed.
-  Eigen::MatrixXd PHt_acc(map.dimension(), 0);
-  Eigen::MatrixXd S_acc(0, 0);
-  Eigen::VectorXd h_acc(0);
-  double scale_acc = 0.0;
+  Eigen::Index a = 0;
   for (std::size_t c = 0; c < candidates.size(); ++c) {
     const ImplicitMeasurement& m = candidates[c];
-    const std::vector<ImplicitMeasurement> one{m};
-    const Eigen::MatrixXd PHt_c = gather_PHt(map, one);
-    const Eigen::MatrixXd S_cc = innovation_covariance(map, one, PHt_c);
-    const Eigen::MatrixXd S_ca = apply_H(map, m, PHt_acc);  // H_c P H_accᵀ
-    const Eigen::Index a = S_acc.rows();
     const Eigen::Index r = m.h.size();
+    if (r == 0) {  // adds nothing: the set stays as compatible as it was
+      kept.push_back(c);
+      continue;
+    }
+    // P H_cᵀ: a gather over the columns H_c touches (DESIGN §5.3), computed
+    // once per candidate and kept in place if it is accepted.
+    auto PHt_c = PHt.middleCols(a, r);
+    PHt_c.setZero();
+    for (const JacobianBlock& b : m.blocks) {
+      PHt_c.noalias() += P.middleCols(map.entity(b.entity).offset, b.J.cols()) * b.J.transpose();
+    }
+    // [H_c P H_accᵀ, H_c P H_cᵀ + R_c]: the candidate's rows of the joint S.
+    Eigen::MatrixXd S_c = Eigen::MatrixXd::Zero(r, a + r);
+    for (const JacobianBlock& b : m.blocks) {
+      S_c.noalias() += b.J * PHt.block(map.entity(b.entity).offset, 0, b.J.cols(), a + r);
+    }
+    S_c.rightCols(r) += m.R;
+    const Eigen::MatrixXd S_cc = 0.5 * (S_c.rightCols(r) + S_c.rightCols(r).transpose());
+    S.block(a, 0, r, a) = S_c.leftCols(a);
+    S.block(0, a, a, r) = S_c.leftCols(a).transpose();
+    S.block(a, a, r, r) = S_cc;
+    h.segment(a, r) = m.h;
 
-    Eigen::MatrixXd S(a + r, a + r);
-    S.topLeftCorner(a, a) = S_acc;
-    S.bottomLeftCorner(r, a) = S_ca;
-    S.topRightCorner(a, r) = S_ca.transpose();
-    S.bottomRightCorner(r, r) = S_cc;
-    Eigen::VectorXd h(a + r);
-    h << h_acc, m.h;
+    // The careful inversion of the joint S (DESIGN §6) judges pivots against
+    // this threshold (careful_inverse.hpp).
+    const double scale = std::max(scale_acc, reference_scale_of(map, m));
+    const double diagonal = std::max(diagonal_acc, S_cc.diagonal().cwiseAbs().maxCoeff());
+    const double threshold = relative_tolerance * std::max(diagonal, scale);
 
-    const double scale = std::max(scale_acc, innovation_reference_scale(map, one));
-    if (!compatibility(h, S, alpha, relative_tolerance, scale).passed) continue;
+    // Fast path, block (Schur complement) update of S⁻¹: with A = S_acc,
+    // B = S_acc,c, C = S_cc: Sc = C - Bᵀ A⁻¹ B, d² = d²_acc + vᵀ Sc⁻¹ v with
+    // v = ĥ_c - Bᵀ A⁻¹ ĥ_acc. It gives the careful inversion's answer when that
+    // keeps every row, which is certain when λ_min(S) is clearly above the
+    // threshold: every pivot of the symmetric sweep is a diagonal entry of a
+    // Schur complement of S, hence >= λ_min(S) >= 1 / trace(S⁻¹). Otherwise
+    // (near-singular S) the full careful inversion decides, as it always did.
+    bool decided = false;
+    bool passed = false;
+    if (have_inverse) {
+      const auto A_inv = S_inv.topLeftCorner(a, a);
+      const Eigen::MatrixXd X = A_inv * S.block(0, a, a, r);  // A⁻¹ B
+      Eigen::MatrixXd Sc = S_cc;
+      Sc.noalias() -= S.block(0, a, a, r).transpose() * X;
+      const Eigen::LLT<Eigen::MatrixXd> llt(0.5 * (Sc + Sc.transpose()));
+      if (llt.info() == Eigen::Success) {
+        Eigen::MatrixXd Sc_inv = llt.solve(Eigen::MatrixXd::Identity(r, r));
+        Sc_inv = 0.5 * (Sc_inv + Sc_inv.transpose()).eval();
+        const Eigen::MatrixXd Y = X * Sc_inv;  // A⁻¹ B Sc⁻¹
+        const double trace = trace_acc + Y.cwiseProduct(X).sum() + Sc_inv.trace();
+        const double safe = std::max(kFastPathMargin * threshold, kFastPathFloor * std::max(diagonal, scale));
+        if (trace > 0.0 && std::isfinite(trace) && 1.0 / trace > safe) {
+          const Eigen::VectorXd v = m.h - X.transpose() * h.head(a);
+          const double d2 = distance_acc + v.dot(Sc_inv * v);
+          decided = true;
+          passed = d2 < chi2_threshold(static_cast<int>(a + r), alpha);
+          if (passed) {
+            // S⁻¹ = [[A⁻¹ + Y Xᵀ, -Y], [-Yᵀ, Sc⁻¹]] (block inverse).
+            S_inv.topLeftCorner(a, a).noalias() += Y * X.transpose();
+            S_inv.block(0, a, a, r) = -Y;
+            S_inv.block(a, 0, r, a) = -Y.transpose();
+            S_inv.block(a, a, r, r) = Sc_inv;
+            distance_acc = d2;
+            trace_acc = trace;
+          }
+        }
+      }
+    }
+    if (!decided) {
+      const CarefulInverse ci = careful_inverse(S.topLeftCorner(a + r, a + r), relative_tolerance, scale);
+      const int dof_kept = static_cast<int>(ci.kept.size());
+      const double d2 = reduced_distance2(h.head(a + r), ci);
+      passed = dof_kept == 0 || d2 < chi2_threshold(dof_kept, alpha);
+      if (passed) {
+        have_inverse = dof_kept == a + r;
+        if (have_inverse) {
+          S_inv.topLeftCorner(a + r, a + r) = ci.inverse;  // kept = all rows, in order
+          distance_acc = d2;
+          trace_acc = ci.inverse.trace();
+        }
+      }
+    }
+    if (!passed) continue;
     kept.push_back(c);
+    a += r;
     scale_acc = scale;
-    S_acc = std::move(S);
-    h_acc = std::move(h);
-    Eigen::MatrixXd PHt_new(PHt_acc.rows(), a + r);
-    PHt_new << PHt_acc, PHt_c;
-    PHt_acc = std::move(PHt_new);
+    diagonal_acc = diagonal;
   }
   return kept;
 }
