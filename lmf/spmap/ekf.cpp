@@ -49,6 +49,18 @@ void validate(const StochasticMap& map, const ImplicitMeasurement& m, const char
   }
 }
 
+// out += C Jᵀ for the n x d columns C of P an entity owns and a small J
+// (rows x d, d <= 3): column axpys. A general product would pack C for a
+// matrix kernel whose inner dimension is only d, which costs more than the sum.
+template <typename Out, typename Columns>
+void add_columns_times_Jt(Out&& out, const Columns& C, const Eigen::MatrixXd& J) {
+  for (Eigen::Index i = 0; i < J.rows(); ++i) {
+    for (Eigen::Index k = 0; k < J.cols(); ++k) {
+      if (J(i, k) != 0.0) out.col(i) += J(i, k) * C.col(k);  // structural zeros of B_E are common
+    }
+  }
+}
+
 // H_m X for X with one row per state row (n x c): touches only H's blocks.
 Eigen::MatrixXd apply_H(const StochasticMap& map, const ImplicitMeasurement& m, const Eigen::MatrixXd& X) {
   Eigen::MatrixXd out = Eigen::MatrixXd::Zero(m.h.size(), X.cols());
@@ -160,7 +172,7 @@ Eigen::MatrixXd gather_PHt(const StochasticMap& map, const std::vector<ImplicitM
     const Eigen::Index r = m.h.size();
     // DESIGN §5.3: P Hᵀ is a gather over the few columns H touches.
     for (const JacobianBlock& b : m.blocks) {
-      PHt.middleCols(col, r).noalias() += P.middleCols(map.entity(b.entity).offset, b.J.cols()) * b.J.transpose();
+      add_columns_times_Jt(PHt.middleCols(col, r), P.middleCols(map.entity(b.entity).offset, b.J.cols()), b.J);
     }
     col += r;
   }
@@ -296,7 +308,7 @@ std::vector<std::size_t> incremental_joint_compatibility(const StochasticMap& ma
     auto PHt_c = PHt.middleCols(a, r);
     PHt_c.setZero();
     for (const JacobianBlock& b : m.blocks) {
-      PHt_c.noalias() += P.middleCols(map.entity(b.entity).offset, b.J.cols()) * b.J.transpose();
+      add_columns_times_Jt(PHt_c, P.middleCols(map.entity(b.entity).offset, b.J.cols()), b.J);
     }
     // [H_c P H_accᵀ, H_c P H_cᵀ + R_c]: the candidate's rows of the joint S.
     Eigen::MatrixXd S_c = Eigen::MatrixXd::Zero(r, a + r);
