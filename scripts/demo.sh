@@ -1,16 +1,40 @@
 #!/usr/bin/env bash
-# The README's main command: installs what is missing, builds, simulates the
-# 3-robot mission on the built-in building and runs the mapping on it.
-# Everything it writes goes to OUT (default: out/).
+# The README's main command: installs what is missing, builds, simulates a
+# 3-robot mission in the built-in building, runs it as separate processes
+# (lmf-server, three lmf-agent, lmf-player in lockstep, lmf-monitor and
+# lcm-logger) inside a private network namespace, and prints the summary and
+# the ATE against ground truth. Everything goes to OUT (default: out/).
+#   scripts/demo.sh [--rate R]     (default: --lockstep, the fastest replay)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 out=${OUT:-$root/out}
-"$root/scripts/install-deps.sh"
-BUILD_DIR=${BUILD_DIR:-$root/build} "$root/scripts/build.sh" >/dev/null
-bin=${BUILD_DIR:-$root/build}/tools
+build=${BUILD_DIR:-$root/build}
+mode=(--lockstep)
+if [[ ${1:-} == --rate ]]; then mode=(--rate "${2:?--rate needs a value}"); fi
 
+"$root/scripts/install-deps.sh"
+echo "== building (log: $out/build.log)"
 mkdir -p "$out"
-echo "== simulating a 3-robot mission (seed 1) into $out/sim"
-"$bin/lmf-sim" --robots 3 --seed 1 --out "$out/sim"
-echo "== wrote:"
-ls -l "$out/sim"
+BUILD_DIR=$build "$root/scripts/build.sh" >"$out/build.log" 2>&1 || { tail -30 "$out/build.log"; exit 1; }
+
+robots=3
+echo "== simulating a $robots-robot, 20-minute mission (seed 1) into $out/sim"
+"$build/tools/lmf-sim" --robots $robots --seed 1 --out "$out/sim"
+
+echo "== running server, agents, player (${mode[*]}), monitor and lcm-logger in a private network namespace"
+# shellcheck source=lib/netns.sh
+source "$root/scripts/lib/netns.sh"
+lmf_netns_exec bash "$root/scripts/lib/run-mission.sh" "$build" "$out/sim" "$out" $robots "$root/config/sim.json" "${mode[@]}"
+
+echo "== summary"
+for ((r = 0; r < robots; ++r)); do grep -h "scans" "$out/logs/agent$r.log" | tail -1 || true; done
+python3 - "$out/report.json" <<'PY' 2>/dev/null || true
+import json, sys
+r = json.load(open(sys.argv[1]))
+print(json.dumps({k: r[k] for k in r if k not in ("fusions",)}, indent=1)[:1500])
+PY
+est=() 
+for ((r = 0; r < robots; ++r)); do est+=(--est "$out/trajectories/robot$r.txt" --ref "$out/sim/robot$r.gt"); done
+echo -n "ATE against ground truth (all robots, one alignment): "
+"$build/tools/lmf-score" "${est[@]}"
+echo "== outputs in $out: map.svg map.json report.json trajectory.txt trajectories/ timing.svg lmf.lcmlog logs/ sim/"
