@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "lmf/fusion/map_export.hpp"
+#include "lmf/mission/mission_report.hpp"
 #include "lmf/io/trajectory.hpp"
 
 namespace lmf::server {
@@ -37,50 +38,9 @@ runtime::RejectReason reason_of(std::string_view what) {
   return runtime::RejectReason::kOutOfRange;
 }
 
-// Same threshold as lmf-offline's "global covariance always ok".
-bool health_ok(const fusion::FusionReport& r) {
-  if (r.min_ldlt_pivot && *r.min_ldlt_pivot < -1e-9) return false;
-  if (r.min_eigenvalue && *r.min_eigenvalue < -1e-9) return false;
-  return true;
-}
-
-const char* sighting_status_name(fusion::SightingStatus s) {
-  switch (s) {
-    case fusion::SightingStatus::kJoined: return "joined";
-    case fusion::SightingStatus::kJoinedApproximately: return "joined_approximately";
-    case fusion::SightingStatus::kPending: return "pending";
-    case fusion::SightingStatus::kIgnored: return "ignored";
-  }
-  return "unknown";
-}
-
 json report_json(const fusion::FusionReport& r, double queue_wait_ms) {
-  json j = {{"robot_id", r.robot_id},
-            {"seq", r.seq},
-            {"local_segments", r.local_segments},
-            {"anchored_backward", r.anchored_backward},
-            {"pairs_considered", r.pairs_considered},
-            {"gate_rejected", r.gate_rejected},
-            {"chi2_rejected", r.chi2_rejected},
-            {"overlap_rejected", r.overlap_rejected},
-            {"jc_candidates", r.jc_candidates},
-            {"jc_rejected", r.jc_rejected},
-            {"pairings_accepted", r.pairings_accepted},
-            {"update_rows", r.update_rows},
-            {"rows_dropped", r.rows_dropped},
-            {"rows_kept", r.rows_kept},
-            {"segments_extended", r.segments_extended},
-            {"global_segments_fused", r.global_segments_fused},
-            {"new_segments", r.new_segments},
-            {"segments_after", r.size_after.segments},
-            {"submaps_after", r.size_after.submaps},
-            {"graph_edges_after", r.size_after.graph_edges},
-            {"state_dimension_after", r.size_after.state_dimension},
-            {"time_ms", r.time.total_s * 1e3},
-            {"update_ms", r.time.update_s * 1e3},
-            {"queue_wait_ms", queue_wait_ms}};
-  if (r.min_ldlt_pivot) j["min_ldlt_pivot"] = *r.min_ldlt_pivot;
-  if (r.min_eigenvalue) j["min_eigenvalue"] = *r.min_eigenvalue;
+  json j = mission::fusion_report_json(r);
+  j["queue_wait_ms"] = queue_wait_ms;
   return j;
 }
 
@@ -326,7 +286,7 @@ void ServerNode::sighting_task(const runtime::Sighting& sighting, Clock::time_po
     const fusion::SightingResult result = map_.add_sighting(to_fusion(sighting));
     record_fusions(result.fused, wait_ms);
     for (const auto& r : result.fused) outcome->fused.emplace_back(r.robot_id, r.seq);
-    sightings_.push_back({sighting, sighting_status_name(result.status)});
+    sightings_.push_back({sighting, mission::sighting_status_name(result.status)});
   } catch (const std::invalid_argument& e) {
     outcome->rejection = runtime::Rejection{reason_of(e.what()), e.what()};
     sightings_.push_back({sighting, "rejected"});
@@ -347,7 +307,7 @@ void ServerNode::record_fusions(const std::vector<fusion::FusionReport>& reports
   for (const auto& r : reports) {
     fusions_.push_back({r, queue_wait_ms});
     fusion_ms_sum_ += r.time.total_s * 1e3;
-    last_covariance_ok_ = health_ok(r);
+    last_covariance_ok_ = mission::covariance_ok(r);
     covariance_always_ok_ = covariance_always_ok_ && last_covariance_ok_;
     if (r.min_ldlt_pivot) {
       last_min_pivot_ = r.min_ldlt_pivot;

@@ -53,42 +53,6 @@ json to_json(const TimingStats& t) {
   return {{"count", t.count}, {"p50_ms", t.p50_ms}, {"p99_ms", t.p99_ms}, {"max_ms", t.max_ms}, {"mean_ms", t.mean_ms}};
 }
 
-json to_json(const fusion::FusionReport& r) {
-  json j = {{"robot_id", r.robot_id},
-            {"seq", r.seq},
-            {"local_segments", r.local_segments},
-            {"pairs_considered", r.pairs_considered},
-            {"gate_rejected", r.gate_rejected},
-            {"chi2_rejected", r.chi2_rejected},
-            {"overlap_rejected", r.overlap_rejected},
-            {"jc_candidates", r.jc_candidates},
-            {"jc_rejected", r.jc_rejected},
-            {"pairings_accepted", r.pairings_accepted},
-            {"update_rows", r.update_rows},
-            {"rows_dropped", r.rows_dropped},
-            {"segments_extended", r.segments_extended},
-            {"global_segments_fused", r.global_segments_fused},
-            {"new_segments", r.new_segments},
-            {"segments_after", r.size_after.segments},
-            {"submaps_after", r.size_after.submaps},
-            {"state_dimension_after", r.size_after.state_dimension},
-            {"time_ms", r.time.total_s * 1e3},
-            {"update_ms", r.time.update_s * 1e3}};
-  if (r.min_ldlt_pivot) j["min_ldlt_pivot"] = *r.min_ldlt_pivot;
-  if (r.min_eigenvalue) j["min_eigenvalue"] = *r.min_eigenvalue;
-  return j;
-}
-
-const char* status_name(fusion::SightingStatus s) {
-  switch (s) {
-    case fusion::SightingStatus::kJoined: return "joined";
-    case fusion::SightingStatus::kJoinedApproximately: return "joined_approximately";
-    case fusion::SightingStatus::kPending: return "pending";
-    case fusion::SightingStatus::kIgnored: return "ignored";
-  }
-  return "unknown";
-}
-
 std::vector<StampedPose> odometry_of(const RobotLog& log) {
   std::vector<StampedPose> poses;
   poses.reserve(log.scans.size());
@@ -104,6 +68,51 @@ const RobotLog* log_of(const MissionInputs& inputs, int robot_id) {
 }
 
 }  // namespace
+
+json fusion_report_json(const fusion::FusionReport& r) {
+  json j = {{"robot_id", r.robot_id},
+            {"seq", r.seq},
+            {"local_segments", r.local_segments},
+            {"anchored_backward", r.anchored_backward},
+            {"pairs_considered", r.pairs_considered},
+            {"gate_rejected", r.gate_rejected},
+            {"chi2_rejected", r.chi2_rejected},
+            {"overlap_rejected", r.overlap_rejected},
+            {"jc_candidates", r.jc_candidates},
+            {"jc_rejected", r.jc_rejected},
+            {"pairings_accepted", r.pairings_accepted},
+            {"update_rows", r.update_rows},
+            {"rows_dropped", r.rows_dropped},
+            {"rows_kept", r.rows_kept},
+            {"segments_extended", r.segments_extended},
+            {"global_segments_fused", r.global_segments_fused},
+            {"new_segments", r.new_segments},
+            {"segments_after", r.size_after.segments},
+            {"submaps_after", r.size_after.submaps},
+            {"graph_edges_after", r.size_after.graph_edges},
+            {"state_dimension_after", r.size_after.state_dimension},
+            {"time_ms", r.time.total_s * 1e3},
+            {"update_ms", r.time.update_s * 1e3}};
+  if (r.min_ldlt_pivot) j["min_ldlt_pivot"] = *r.min_ldlt_pivot;
+  if (r.min_eigenvalue) j["min_eigenvalue"] = *r.min_eigenvalue;
+  return j;
+}
+
+const char* sighting_status_name(fusion::SightingStatus s) {
+  switch (s) {
+    case fusion::SightingStatus::kJoined: return "joined";
+    case fusion::SightingStatus::kJoinedApproximately: return "joined_approximately";
+    case fusion::SightingStatus::kPending: return "pending";
+    case fusion::SightingStatus::kIgnored: return "ignored";
+  }
+  return "unknown";
+}
+
+bool covariance_ok(const fusion::FusionReport& r) {
+  if (r.min_ldlt_pivot && *r.min_ldlt_pivot < -1e-9) return false;
+  if (r.min_eigenvalue && *r.min_eigenvalue < -1e-9) return false;
+  return true;
+}
 
 std::optional<MissionScore> score_mission(const MissionResult& result, const MissionInputs& inputs) {
   MissionScore score;
@@ -195,14 +204,14 @@ void write_mission_outputs(const std::filesystem::path& out, const OfflineMissio
   report["fusion_timing"] = to_json(result.fusion_timing);
   report["global_covariance_always_ok"] = result.global_covariance_always_ok;
   json fusions = json::array();
-  for (const auto& f : result.fusions) fusions.push_back(to_json(f));
+  for (const auto& f : result.fusions) fusions.push_back(fusion_report_json(f));
   report["fusions"] = fusions;
   json sightings = json::array();
   for (const auto& s : result.sightings) {
     sightings.push_back({{"utime", s.input.utime},
                          {"observer", s.input.observer},
                          {"observed", s.input.observed},
-                         {"status", status_name(s.status)}});
+                         {"status", sighting_status_name(s.status)}});
   }
   report["sightings"] = sightings;
   if (score) {

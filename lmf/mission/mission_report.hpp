@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "lmf/eval/trajectory_error.hpp"
 #include "lmf/mission/offline_mission.hpp"
 
@@ -28,6 +30,16 @@ struct MissionScore {
   eval::RelativeError rpe_10m;
   std::vector<RobotScore> robots;
 };
+
+// One fusion's report as a JSON object (report.json of lmf-offline and lmf-server).
+nlohmann::json fusion_report_json(const fusion::FusionReport& report);
+
+// "joined", "joined_approximately", "pending", "ignored".
+const char* sighting_status_name(fusion::SightingStatus status);
+
+// False when the fusion's covariance check saw a negative pivot or eigenvalue
+// beyond rounding (-1e-9).
+bool covariance_ok(const fusion::FusionReport& report);
 
 // Scores the joined robots that have a reference; nullopt when none has.
 std::optional<MissionScore> score_mission(const MissionResult& result, const MissionInputs& inputs);

@@ -1,5 +1,7 @@
 #include "lmf/mission/offline_mission.hpp"
 
+#include "lmf/mission/mission_report.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -134,8 +136,7 @@ void OfflineMission::record(const std::vector<fusion::FusionReport>& reports) {
     for (RobotResult& r : result_.robots) {
       if (r.robot_id == report.robot_id) ++r.local_maps_fused;
     }
-    if (report.min_ldlt_pivot && *report.min_ldlt_pivot < -1e-9) result_.global_covariance_always_ok = false;
-    if (report.min_eigenvalue && *report.min_eigenvalue < -1e-9) result_.global_covariance_always_ok = false;
+    if (!covariance_ok(report)) result_.global_covariance_always_ok = false;
     result_.fusions.push_back(report);
   }
 }
