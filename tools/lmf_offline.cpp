@@ -66,7 +66,7 @@ int main(int argc, char** argv) {
             : lmf::mission::load_sim_folder(sim_dir, config.sighting_noise);
     lmf::mission::OfflineMission mission(config, std::move(inputs));
     const lmf::mission::MissionResult result = mission.run();
-    const auto score = lmf::mission::score_mission(result, mission.inputs());
+    const auto score = lmf::mission::score_mission(result, mission.inputs(), mission.global_map());
     lmf::mission::write_mission_outputs(out, mission, result, score);
     std::cout << lmf::mission::summarize(mission, result, score) << "wrote " << out
               << "/{trajectory.txt, trajectories/, map.json, map.svg, report.json}\n";

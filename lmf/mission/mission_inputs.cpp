@@ -143,6 +143,26 @@ MissionInputs load_sim_folder(const std::filesystem::path& dir, const SightingNo
   }
   if (inputs.robots.empty()) throw std::invalid_argument(dir.string() + ": no robot0.log");
 
+  const auto walls_file = dir / "walls.json";
+  if (std::filesystem::exists(walls_file)) {
+    const nlohmann::json doc = io::read_json_file(walls_file);
+    if (!doc.contains("walls") || !doc["walls"].is_array()) {
+      throw std::invalid_argument(walls_file.string() + ": no \"walls\" array");
+    }
+    for (const auto& w : doc["walls"]) {
+      if (!w.is_array() || w.size() != 4) throw std::invalid_argument(walls_file.string() + ": a wall is not [x1, y1, x2, y2]");
+      inputs.walls.push_back({{w[0].get<double>(), w[1].get<double>()}, {w[2].get<double>(), w[3].get<double>()}});
+    }
+    // Tables are boxes the laser sees too: their four faces.
+    for (const auto& t : doc.value("tables", nlohmann::json::array())) {
+      const Eigen::Vector2d lo(t["min"][0].get<double>(), t["min"][1].get<double>());
+      const Eigen::Vector2d hi(t["max"][0].get<double>(), t["max"][1].get<double>());
+      const Eigen::Vector2d c1(hi.x(), lo.y());
+      const Eigen::Vector2d c2(lo.x(), hi.y());
+      inputs.walls.insert(inputs.walls.end(), {{lo, c1}, {c1, hi}, {hi, c2}, {c2, lo}});
+    }
+  }
+
   const auto sightings_file = dir / "sightings.json";
   if (std::filesystem::exists(sightings_file)) {
     const nlohmann::json doc = io::read_json_file(sightings_file);

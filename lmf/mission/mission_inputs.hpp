@@ -13,6 +13,7 @@
 
 #include <Eigen/Core>
 
+#include "lmf/eval/map_error.hpp"
 #include "lmf/geometry/pose2.hpp"
 #include "lmf/geometry/stamped_pose.hpp"
 #include "lmf/scan/laser_scan.hpp"
@@ -38,6 +39,7 @@ struct MissionInputs {
   std::vector<RobotLog> robots;                        // the first one defines W
   std::vector<SightingInput> sightings;                // in time order
   std::map<int, std::vector<StampedPose>> reference;   // per robot, for scoring (may be empty)
+  std::vector<eval::LineSegment> walls;                // true wall faces (simulator), for the map error
   std::string description;                             // one line for summaries
 };
 

@@ -114,7 +114,8 @@ bool covariance_ok(const fusion::FusionReport& r) {
   return true;
 }
 
-std::optional<MissionScore> score_mission(const MissionResult& result, const MissionInputs& inputs) {
+std::optional<MissionScore> score_mission(const MissionResult& result, const MissionInputs& inputs,
+                                          const fusion::GlobalMap& map) {
   MissionScore score;
   std::vector<eval::PosePair> all_pairs;
   std::vector<eval::RelativeError> rpe1;
@@ -141,6 +142,11 @@ std::optional<MissionScore> score_mission(const MissionResult& result, const Mis
   score.ate = eval::absolute_trajectory_error(all_pairs);
   score.rpe_1m = pool(rpe1, 1.0);
   score.rpe_10m = pool(rpe10, 10.0);
+  if (!inputs.walls.empty()) {
+    std::vector<eval::LineSegment> mapped;
+    for (const fusion::SegmentView& s : map.segments()) mapped.push_back({s.start_W, s.end_W});
+    score.map = eval::map_error(mapped, inputs.walls, score.ate.alignment);
+  }
   return score;
 }
 
@@ -223,6 +229,13 @@ void write_mission_outputs(const std::filesystem::path& out, const OfflineMissio
                            {"rpe_10m", to_json(s.rpe_10m)},
                            {"odometry_ate", to_json(s.odometry_ate)}});
     }
+    if (score->map) {
+      report["map_error"] = {{"segments", score->map->segments},
+                             {"unmatched_segments", score->map->unmatched_segments},
+                             {"points", score->map->points},
+                             {"rms_m", score->map->rms_m},
+                             {"max_m", score->map->max_m}};
+    }
     report["score"] = {{"ate", to_json(score->ate)},
                        {"rpe_1m", to_json(score->rpe_1m)},
                        {"rpe_10m", to_json(score->rpe_10m)},
@@ -268,6 +281,13 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
                   score->rpe_1m.translation_rmse_m, score->rpe_1m.rotation_rmse_deg, score->rpe_10m.translation_rmse_m,
                   score->rpe_10m.rotation_rmse_deg);
     s << line;
+    if (score->map) {
+      std::snprintf(line, sizeof line,
+                    "map vs true walls: %.3f m RMS (max %.3f m) over %zu segments; %zu segments match no wall\n",
+                    score->map->rms_m, score->map->max_m, score->map->segments - score->map->unmatched_segments,
+                    score->map->unmatched_segments);
+      s << line;
+    }
   }
   return s.str();
 }

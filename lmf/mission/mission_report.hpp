@@ -29,6 +29,7 @@ struct MissionScore {
   eval::RelativeError rpe_1m;   // pooled over robots
   eval::RelativeError rpe_10m;
   std::vector<RobotScore> robots;
+  std::optional<eval::MapError> map;  // against the true walls, when the inputs have them
 };
 
 // One fusion's report as a JSON object (report.json of lmf-offline and lmf-server).
@@ -42,7 +43,8 @@ const char* sighting_status_name(fusion::SightingStatus status);
 bool covariance_ok(const fusion::FusionReport& report);
 
 // Scores the joined robots that have a reference; nullopt when none has.
-std::optional<MissionScore> score_mission(const MissionResult& result, const MissionInputs& inputs);
+std::optional<MissionScore> score_mission(const MissionResult& result, const MissionInputs& inputs,
+                                          const fusion::GlobalMap& map);
 
 // Writes OUT/trajectory.txt (all robots, time order) and OUT/trajectories/NAME.txt.
 void write_trajectories(const std::filesystem::path& out,

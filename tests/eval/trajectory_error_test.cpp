@@ -75,3 +75,24 @@ TEST(TrajectoryError, AssociationByNearestTimestampWithinTolerance) {
 
 }  // namespace
 }  // namespace lmf::eval
+
+#include "lmf/eval/map_error.hpp"
+
+namespace lmf::eval {
+namespace {
+
+TEST(MapError, OffsetSegmentAndAGhost) {
+  const std::vector<LineSegment> walls = {{{0, 0}, {10, 0}}, {{10, 0}, {10, 5}}};
+  // One segment 3 cm off the first wall, reversed; one nowhere near a wall; both in a
+  // map frame W that is the truth's frame shifted by 1 m in x.
+  const std::vector<LineSegment> mapped = {{{8.0, 0.03}, {1.0, 0.03}}, {{3.0, 3.0}, {5.0, 3.0}}};
+  const MapError e = map_error(mapped, walls, Pose2(1.0, 0.0, 0.0));
+  EXPECT_EQ(e.segments, 2u);
+  EXPECT_EQ(e.unmatched_segments, 1u);
+  EXPECT_NEAR(e.rms_m, 0.03, 1e-12);
+  EXPECT_NEAR(e.max_m, 0.03, 1e-12);
+  EXPECT_THROW(map_error(mapped, walls, Pose2(), 0.0), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace lmf::eval

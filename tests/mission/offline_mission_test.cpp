@@ -48,7 +48,7 @@ TEST(OfflineMission, SimulatedTwoRobotMissionJoinsBySightingAndMaps) {
     EXPECT_TRUE(r.covariance_always_ok) << r.first_covariance_problem;
   }
   EXPECT_TRUE(result.global_covariance_always_ok);
-  const auto score = score_mission(result, mission.inputs());
+  const auto score = score_mission(result, mission.inputs(), mission.global_map());
   ASSERT_TRUE(score.has_value());
   // Odometry alone drifts by metres over this mission; the map keeps the robots
   // within a few decimetres of the truth in one common frame.
@@ -98,7 +98,7 @@ TEST(Belgioioso, OneRobotAteWithinQuarterMetre) {
       load_logs({dir / "belgioioso-noisy.log.gz"}, 1, dir / "belgioioso-noisy.gt", SightingNoise{});
   OfflineMission mission(MissionConfig{}, inputs);
   const MissionResult result = mission.run();
-  const auto score = score_mission(result, mission.inputs());
+  const auto score = score_mission(result, mission.inputs(), mission.global_map());
   ASSERT_TRUE(score.has_value());
   EXPECT_EQ(score->ate.count, 395u);
   EXPECT_LT(score->ate.position_rmse_m, 0.25);
