@@ -511,4 +511,17 @@ void LocalMap::reset() {
   first_utime_ = had_scans ? std::optional<int64_t>(last_utime_) : std::nullopt;
 }
 
+void LocalMap::resume(int64_t seq, int64_t origin_utime, const Pose2& origin_odometry) {
+  if (seq < 0) throw std::invalid_argument("LocalMap::resume: seq must be >= 0, got " + std::to_string(seq));
+  if (!finite(origin_odometry)) throw std::invalid_argument("LocalMap::resume: non-finite odometry pose");
+  // What reset() leaves after that scan (paper §II.C: the new map starts at
+  // position 0 with covariance 0) ...
+  seq_ = seq - 1;
+  reset();
+  first_utime_ = origin_utime;
+  last_utime_ = origin_utime;
+  // ... with the odometry reference of that scan: update() predicts from it.
+  odometry_reference_ = origin_odometry;
+}
+
 }  // namespace lmf

@@ -119,6 +119,15 @@ class LocalMap {
   // segments, seq + 1, first_utime = the last scan's time. The odometry reference
   // is kept, so the next prediction uses the motion since the last scan.
   void reset();
+  // Continues a chain of local maps in a new LocalMap (a robot agent restarted
+  // from its persisted state): as if reset() had just started local map `seq`
+  // after a scan at `origin_utime` with odometry reading `origin_odometry` (x_OR).
+  // The next update() predicts with the motion since that reading (step 1), so
+  // the robot starts that map NOT at the origin but at the odometric
+  // displacement, with the odometry noise model's covariance for it: whatever
+  // was observed in between is lost, the motion is bridged by odometry. Throws
+  // std::invalid_argument (state unchanged) for seq < 0 or a non-finite pose.
+  void resume(int64_t seq, int64_t origin_utime, const Pose2& origin_odometry);
 
   // Symmetry and positive semidefiniteness of P (LocalMapConfig::covariance_tolerance).
   spmap::CovarianceHealth check_covariance() const;

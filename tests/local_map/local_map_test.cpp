@@ -414,6 +414,76 @@ TEST(LocalMapSnapshot, SnapshotAndResetRoundTrip) {
   EXPECT_GT(lm.robot_covariance().trace(), 0.0);
 }
 
+// A restarted agent continues its chain of local maps in a fresh LocalMap:
+// resume() must leave exactly the state reset() leaves after the origin scan,
+// so the next scan predicts with the odometry since that scan.
+TEST(LocalMapSnapshot, ResumeContinuesTheChainFromTheOriginOdometry) {
+  const std::vector<Pose2> odometry = {{0.0, 0.0, 0.0}, {0.5, 0.0, 0.02}, {1.0, 0.05, 0.03}};
+  const auto walls = [](const Pose2& x) {
+    return std::vector<ObservedSegment>{observe_wall(x, {-1.0, 2.0}, {4.0, 2.0}),
+                                        observe_wall(x, {4.0, -1.0}, {4.0, 3.0})};
+  };
+  LocalMap uninterrupted(LocalMapConfig{}, 7);
+  for (std::size_t k = 0; k < odometry.size(); ++k) {
+    uninterrupted.update(1000 + static_cast<int64_t>(k) * kScanPeriodUs, odometry[k], walls(odometry[k]));
+  }
+  const int64_t origin_utime = 1000 + 2 * kScanPeriodUs;
+  uninterrupted.reset();  // map 1 starts at the robot's pose at the last scan
+
+  LocalMap resumed(LocalMapConfig{}, 7);
+  resumed.resume(1, origin_utime, odometry.back());
+  EXPECT_EQ(resumed.seq(), 1);
+  EXPECT_EQ(resumed.num_segments(), 0u);
+  EXPECT_TRUE(is_near(resumed.x_LR(), Pose2(), 0.0, 0.0));
+  EXPECT_TRUE(matrices_near(resumed.robot_covariance(), Eigen::Matrix3d::Zero(), 0.0));
+  EXPECT_EQ(resumed.snapshot().first_utime, origin_utime);
+
+  // The next scan (some scans later: the motion in between is one odometry step).
+  const Pose2 later(2.4, 0.3, 0.25);
+  const int64_t later_utime = 1000 + 9 * kScanPeriodUs;
+  uninterrupted.update(later_utime, later, walls(later));
+  resumed.update(later_utime, later, walls(later));
+  const LocalMapSnapshot a = uninterrupted.snapshot();
+  const LocalMapSnapshot b = resumed.snapshot();
+  EXPECT_EQ(b.seq, a.seq);
+  EXPECT_EQ(b.first_utime, a.first_utime);
+  EXPECT_EQ(b.last_utime, later_utime);
+  EXPECT_TRUE(is_near(b.x_LR, a.x_LR, 0.0, 0.0));
+  ASSERT_EQ(b.segments.size(), a.segments.size());
+  EXPECT_TRUE(matrices_near(b.covariance, a.covariance, 0.0));
+  EXPECT_EQ(resumed.span_m(), uninterrupted.span_m());
+
+  // Without observations the robot sits at the odometric displacement with the
+  // odometry noise model's covariance J_u Q J_uᵀ (step 1 from pose 0, covariance 0).
+  LocalMap bridged(LocalMapConfig{}, 7);
+  bridged.resume(4, origin_utime, odometry.back());
+  bridged.update(later_utime, later, {});
+  const Pose2 u = between(odometry.back(), later);
+  const local_map::PredictionJacobians pj = local_map::prediction_jacobians(Pose2(), u);
+  const Eigen::Matrix3d expected = pj.J_u * local_map::odometry_noise(u, LocalMapConfig{}) * pj.J_u.transpose();
+  EXPECT_EQ(bridged.seq(), 4);
+  EXPECT_TRUE(is_near(bridged.x_LR(), u, 1e-12, 1e-12));
+  EXPECT_TRUE(matrices_near(bridged.robot_covariance(), expected, 1e-15));
+  EXPECT_GT(bridged.robot_covariance().trace(), 0.0);
+  bridged.reset();
+  EXPECT_EQ(bridged.seq(), 5);
+  EXPECT_EQ(bridged.snapshot().first_utime, later_utime);
+
+  // Map 0 resumed from the first scan's reading: its origin stays that scan's pose.
+  LocalMap first;
+  first.resume(0, 1000, odometry.front());
+  first.update(1000 + kScanPeriodUs, odometry[1], {});
+  EXPECT_EQ(first.seq(), 0);
+  EXPECT_TRUE(is_near(first.x_LR(), between(odometry.front(), odometry[1]), 1e-12, 1e-12));
+  EXPECT_EQ(first.snapshot().first_utime, 1000);
+
+  // Bad input: state unchanged.
+  EXPECT_THROW(first.resume(-1, 0, Pose2()), std::invalid_argument);
+  EXPECT_THROW(first.resume(3, 0, Pose2(0.0, std::nan(""), 0.0)), std::invalid_argument);
+  EXPECT_EQ(first.seq(), 0);
+  EXPECT_TRUE(is_near(first.x_LR(), between(odometry.front(), odometry[1]), 1e-12, 1e-12));
+}
+
 TEST(LocalMapSupervision, CovarianceIsCheckedAtTheConfiguredInterval) {
   LocalMapConfig config;
   config.covariance_check_interval = 2;
