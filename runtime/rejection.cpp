@@ -17,6 +17,11 @@ std::string_view reason_name(RejectReason reason) {
     case RejectReason::kUnknownRobot: return "unknown_robot";
     case RejectReason::kStaleSequence: return "stale_sequence";
     case RejectReason::kHandlerError: return "handler_error";
+    case RejectReason::kAuthMissing: return "auth_missing";
+    case RejectReason::kAuthBadTag: return "auth_bad_tag";
+    case RejectReason::kAuthReplayed: return "auth_replayed";
+    case RejectReason::kAuthUnknownSender: return "auth_unknown_sender";
+    case RejectReason::kAuthNotAllowed: return "auth_not_allowed";
   }
   return "unknown_reason";
 }

@@ -33,8 +33,14 @@ enum class RejectReason : std::uint8_t {
   kUnknownRobot,             // decided by the caller: a robot it does not know
   kStaleSequence,            // decided by the caller: a replayed or old sequence number
   kHandlerError,             // a subscription handler threw; the message was dropped
+  // Authentication (runtime/auth.hpp), only when the Bus has keys:
+  kAuthMissing,              // no (well-formed) authentication trailer
+  kAuthBadTag,               // the HMAC does not match: forged, corrupted or signed with another key
+  kAuthReplayed,             // a sequence number already seen or older than the replay window
+  kAuthUnknownSender,        // signed by a principal whose key this process does not hold
+  kAuthNotAllowed,           // an authentic sender saying what it may not (robot1 sending robot 2's map)
 };
-inline constexpr std::size_t kNumRejectReasons = 11;
+inline constexpr std::size_t kNumRejectReasons = 16;
 
 // Stable lower_snake names ("decode_failed", "covariance_not_psd", ...).
 std::string_view reason_name(RejectReason reason);

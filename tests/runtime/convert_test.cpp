@@ -599,7 +599,9 @@ TEST(RejectCounter, CountsAndNamesAreStable) {
   EXPECT_EQ(nonzero[1].first, "stale_sequence");
   const char* expected[] = {"decode_failed", "oversized", "non_finite", "wrong_size",
                             "covariance_not_symmetric", "covariance_not_psd", "bad_angle", "out_of_range",
-                            "unknown_robot", "stale_sequence", "handler_error"};
+                            "unknown_robot", "stale_sequence", "handler_error", "auth_missing",
+                            "auth_bad_tag", "auth_replayed", "auth_unknown_sender", "auth_not_allowed"};
+  static_assert(std::size(expected) == rt::kNumRejectReasons);
   for (std::size_t i = 0; i < rt::kNumRejectReasons; ++i) {
     EXPECT_EQ(rt::reason_name(static_cast<RejectReason>(i)), expected[i]);
   }
