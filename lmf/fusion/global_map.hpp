@@ -273,6 +273,7 @@ class GlobalMap {
   void reserve(Eigen::Index dimension) { state_.reserve(dimension); }
 
  private:
+  friend class GlobalMapArchive;  // global_map_archive.cpp: exact save/restore
   struct FrameSlot {
     EntityId frame = 0;
     std::optional<EntityId> robot;  // pre-placed robot of a backward-anchored local map

@@ -153,6 +153,7 @@ class GlobalState {
   std::vector<EntityId> add_many(const std::vector<NewEntity>& entities);
 
  private:
+  friend class GlobalMapArchive;  // global_map_archive.cpp: exact save/restore
   std::size_t index_of(EntityId id) const;
   void validate_measurement(const spmap::ImplicitMeasurement& m, const char* where) const;
   std::vector<Eigen::Index> rows_of(const std::vector<EntityId>& ids) const;

@@ -1,0 +1,654 @@
+#include "lmf/fusion/global_map_archive.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cstring>
+#include <istream>
+#include <limits>
+#include <ostream>
+#include <set>
+#include <unordered_set>
+#include <utility>
+
+#include <zlib.h>
+
+namespace lmf::fusion {
+
+static_assert(std::endian::native == std::endian::little, "the archive stores host-order little-endian values");
+static_assert(std::numeric_limits<double>::is_iec559, "the archive stores IEEE-754 doubles bit for bit");
+
+namespace {
+
+constexpr std::string_view kMapMagic("LMFGMAP\0", 8);
+// A sanity cap on the covariance buffer a (checksummed) archive may ask for:
+// 65536² doubles is 32 GiB, beyond any map this server handles.
+constexpr std::int64_t kMaxCapacity = std::int64_t{1} << 16;
+
+std::uint32_t crc_update(std::uint32_t crc, const void* data, std::size_t size) {
+  const auto* bytes = static_cast<const Bytef*>(data);
+  uLong c = crc;
+  while (size > 0) {
+    const auto chunk = static_cast<uInt>(std::min<std::size_t>(size, std::numeric_limits<uInt>::max()));
+    c = crc32(c, bytes, chunk);
+    bytes += chunk;
+    size -= chunk;
+  }
+  return static_cast<std::uint32_t>(c);
+}
+
+void write_sighting(ArchiveWriter& w, const RobotSighting& s) {
+  w.i64(s.utime);
+  w.i32(s.observer_id);
+  w.i32(s.observed_id);
+  w.i64(s.observer_seq);
+  w.pose(s.x_LA);
+  w.matrix3(s.cov_LA);
+  w.pose(s.x_AB);
+  w.matrix3(s.cov_AB);
+  w.i64(s.observed_seq);
+  w.pose(s.x_LB);
+  w.matrix3(s.cov_LB);
+}
+
+RobotSighting read_sighting(ArchiveReader& r) {
+  RobotSighting s;
+  s.utime = r.i64();
+  s.observer_id = r.i32();
+  s.observed_id = r.i32();
+  s.observer_seq = r.i64();
+  s.x_LA = r.pose();
+  s.cov_LA = r.matrix3();
+  s.x_AB = r.pose();
+  s.cov_AB = r.matrix3();
+  s.observed_seq = r.i64();
+  s.x_LB = r.pose();
+  s.cov_LB = r.matrix3();
+  return s;
+}
+
+void write_optional(ArchiveWriter& w, const std::optional<double>& v) {
+  w.boolean(v.has_value());
+  w.f64(v.value_or(0.0));
+}
+
+std::optional<double> read_optional(ArchiveReader& r) {
+  const bool has = r.boolean();
+  const double v = r.f64();
+  return has ? std::optional<double>(v) : std::nullopt;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+// Writer / reader
+
+void ArchiveWriter::raw(const void* data, std::size_t size) { out_.append(static_cast<const char*>(data), size); }
+
+void ArchiveWriter::pose(const Pose2& p) {
+  f64(p.x);
+  f64(p.y);
+  f64(p.phi);
+}
+
+void ArchiveWriter::matrix(const Eigen::MatrixXd& m) {
+  i64(m.rows());
+  i64(m.cols());
+  raw(m.data(), static_cast<std::size_t>(m.size()) * sizeof(double));
+}
+
+void ArchiveWriter::matrix3(const Eigen::Matrix3d& m) { raw(m.data(), 9 * sizeof(double)); }
+
+void ArchiveWriter::text(std::string_view s) {
+  count(s.size());
+  raw(s.data(), s.size());
+}
+
+ArchiveReader::ArchiveReader(const char* data, std::size_t size, std::string context)
+    : data_(data), size_(size), context_(std::move(context)) {}
+
+void ArchiveReader::fail(const std::string& what) const {
+  throw ArchiveError(context_ + ": " + what + " (at byte " + std::to_string(pos_) + " of " + std::to_string(size_) +
+                     ")");
+}
+
+void ArchiveReader::raw(void* data, std::size_t size) {
+  if (size > remaining()) fail("truncated: " + std::to_string(size) + " more bytes needed");
+  if (size > 0) std::memcpy(data, data_ + pos_, size);
+  pos_ += size;
+}
+
+std::uint8_t ArchiveReader::u8() {
+  std::uint8_t v = 0;
+  raw(&v, sizeof v);
+  return v;
+}
+
+bool ArchiveReader::boolean() {
+  const std::uint8_t v = u8();
+  if (v > 1) fail("corrupt: a flag holds " + std::to_string(v));
+  return v == 1;
+}
+
+std::uint32_t ArchiveReader::u32() {
+  std::uint32_t v = 0;
+  raw(&v, sizeof v);
+  return v;
+}
+
+std::int32_t ArchiveReader::i32() {
+  std::int32_t v = 0;
+  raw(&v, sizeof v);
+  return v;
+}
+
+std::uint64_t ArchiveReader::u64() {
+  std::uint64_t v = 0;
+  raw(&v, sizeof v);
+  return v;
+}
+
+std::int64_t ArchiveReader::i64() {
+  std::int64_t v = 0;
+  raw(&v, sizeof v);
+  return v;
+}
+
+double ArchiveReader::f64() {
+  double v = 0.0;
+  raw(&v, sizeof v);
+  return v;
+}
+
+std::size_t ArchiveReader::count(std::size_t min_element_bytes) {
+  const std::uint64_t n = u64();
+  if (min_element_bytes > 0 && n > remaining() / min_element_bytes) {
+    fail("corrupt: a count of " + std::to_string(n) + " does not fit in the remaining bytes");
+  }
+  return static_cast<std::size_t>(n);
+}
+
+Pose2 ArchiveReader::pose() {
+  Pose2 p;
+  p.x = f64();
+  p.y = f64();
+  p.phi = f64();
+  return p;
+}
+
+Eigen::MatrixXd ArchiveReader::matrix() {
+  const std::int64_t rows = i64();
+  const std::int64_t cols = i64();
+  if (rows < 0 || cols < 0) fail("corrupt: a matrix of " + std::to_string(rows) + "x" + std::to_string(cols));
+  if (rows > 0 && static_cast<std::uint64_t>(cols) > remaining() / sizeof(double) / static_cast<std::uint64_t>(rows)) {
+    fail("truncated: a " + std::to_string(rows) + "x" + std::to_string(cols) + " matrix does not fit");
+  }
+  Eigen::MatrixXd m(rows, cols);
+  raw(m.data(), static_cast<std::size_t>(m.size()) * sizeof(double));
+  return m;
+}
+
+Eigen::Matrix3d ArchiveReader::matrix3() {
+  Eigen::Matrix3d m;
+  raw(m.data(), 9 * sizeof(double));
+  return m;
+}
+
+std::string ArchiveReader::text() {
+  std::string s(count(1), '\0');
+  raw(s.data(), s.size());
+  return s;
+}
+
+// ---------------------------------------------------------------------------
+// Framing
+
+void write_framed(std::ostream& out, std::string_view magic, std::uint32_t version, std::string_view payload) {
+  if (magic.size() != 8) throw std::invalid_argument("write_framed: the magic must be 8 bytes");
+  std::string head;
+  ArchiveWriter w(head);
+  w.raw(magic.data(), magic.size());
+  w.u32(version);
+  w.u64(payload.size());
+  std::uint32_t crc = crc_update(0, head.data(), head.size());
+  crc = crc_update(crc, payload.data(), payload.size());
+  std::string tail;
+  ArchiveWriter(tail).u32(crc);
+  out.write(head.data(), static_cast<std::streamsize>(head.size()));
+  out.write(payload.data(), static_cast<std::streamsize>(payload.size()));
+  out.write(tail.data(), static_cast<std::streamsize>(tail.size()));
+}
+
+std::string read_framed(std::istream& in, std::string_view magic, std::uint32_t max_version, std::uint32_t& version,
+                        std::uint64_t max_length) {
+  const std::string what = "archive '" + std::string(magic.substr(0, magic.find('\0'))) + "'";
+  char head[20];
+  in.read(head, sizeof head);
+  if (in.gcount() != static_cast<std::streamsize>(sizeof head)) {
+    throw ArchiveError(what + ": truncated header (" + std::to_string(in.gcount()) + " of 20 bytes)");
+  }
+  if (std::string_view(head, 8) != magic) throw ArchiveError(what + ": wrong magic (not this kind of archive)");
+  ArchiveReader h(head + 8, 12, what);
+  version = h.u32();
+  const std::uint64_t length = h.u64();
+  if (version == 0 || version > max_version) {
+    throw ArchiveError(what + ": unknown version " + std::to_string(version) + " (this build reads 1.." +
+                       std::to_string(max_version) + ")");
+  }
+  if (length > max_length) throw ArchiveError(what + ": implausible payload length " + std::to_string(length));
+  // Read in chunks: a corrupt length never allocates more than the stream holds.
+  std::string payload;
+  constexpr std::size_t kChunk = std::size_t{1} << 24;
+  while (payload.size() < length) {
+    const std::size_t want = static_cast<std::size_t>(std::min<std::uint64_t>(kChunk, length - payload.size()));
+    const std::size_t had = payload.size();
+    payload.resize(had + want);
+    in.read(payload.data() + had, static_cast<std::streamsize>(want));
+    if (in.gcount() != static_cast<std::streamsize>(want)) {
+      throw ArchiveError(what + ": truncated payload (" + std::to_string(had + static_cast<std::size_t>(in.gcount())) +
+                         " of " + std::to_string(length) + " bytes)");
+    }
+  }
+  char tail[4];
+  in.read(tail, sizeof tail);
+  if (in.gcount() != static_cast<std::streamsize>(sizeof tail)) throw ArchiveError(what + ": truncated checksum");
+  std::uint32_t stored = 0;
+  std::memcpy(&stored, tail, sizeof stored);
+  std::uint32_t crc = crc_update(0, head, sizeof head);
+  crc = crc_update(crc, payload.data(), payload.size());
+  if (crc != stored) throw ArchiveError(what + ": checksum mismatch (corrupt)");
+  return payload;
+}
+
+// ---------------------------------------------------------------------------
+// The map
+
+class GlobalMapArchive {
+ public:
+  static void write(ArchiveWriter& w, const GlobalMap& map);
+  static GlobalMap read(ArchiveReader& r);
+  static void write_config(ArchiveWriter& w, const GlobalMapConfig& c);
+  static GlobalMapConfig read_config(ArchiveReader& r);
+  static void write_state(ArchiveWriter& w, const GlobalState& s);
+  static void read_state(ArchiveReader& r, GlobalState& s);
+};
+
+// Payload, in order:
+//   config      10 f64 (alpha, gate_angle_rad, gate_distance_m, gate_gap_m,
+//               gate_sigmas, min_overlap_m, careful_relative_tolerance,
+//               careful_absolute_floor, snapshot_tolerance, max_coordinate_m),
+//               u8 first_robot_defines_world, u8 health, i32 frame_history_per_robot
+//   state       i64 next_id, i64 n, i64 capacity, u64 count + entities
+//               (i64 id, u8 kind, pose, f64 length, u8 has_parent, i64 parent,
+//               i64 offset), then P's lower triangle by columns (column j:
+//               rows j..n-1), n(n+1)/2 f64
+//   robots      u64 count + (i32 id, u8 joined, i64 next_seq, i64 min_seq,
+//               frames: u64 count + (i64 seq, i64 frame, u8 has_robot, i64 robot),
+//               queue: u64 count + local maps (write_local_map),
+//               fused: u64 count + i64 seq,
+//               history: u64 count + (i64 seq, pose, 9 f64 column-major))
+//   submaps     u64 count + (i64 frame, i32 robot_id, i64 seq)
+//   edges       u64 count + (i64 a, i64 b)
+//   sightings   u64 count + pending RobotSighting (see write_sighting)
+//   flags       u8 any_joined, u8 resolving
+void GlobalMapArchive::write_config(ArchiveWriter& w, const GlobalMapConfig& c) {
+  for (const double v : {c.alpha, c.gate_angle_rad, c.gate_distance_m, c.gate_gap_m, c.gate_sigmas, c.min_overlap_m,
+                         c.careful_relative_tolerance, c.careful_absolute_floor, c.snapshot_tolerance,
+                         c.max_coordinate_m}) {
+    w.f64(v);
+  }
+  w.boolean(c.first_robot_defines_world);
+  w.u8(static_cast<std::uint8_t>(c.health));
+  w.i32(c.frame_history_per_robot);
+}
+
+GlobalMapConfig GlobalMapArchive::read_config(ArchiveReader& r) {
+  GlobalMapConfig c;
+  for (double* v : {&c.alpha, &c.gate_angle_rad, &c.gate_distance_m, &c.gate_gap_m, &c.gate_sigmas, &c.min_overlap_m,
+                    &c.careful_relative_tolerance, &c.careful_absolute_floor, &c.snapshot_tolerance,
+                    &c.max_coordinate_m}) {
+    *v = r.f64();
+  }
+  c.first_robot_defines_world = r.boolean();
+  const std::uint8_t health = r.u8();
+  if (health > static_cast<std::uint8_t>(HealthCheck::kFullEigen)) r.fail("corrupt: health check " + std::to_string(health));
+  c.health = static_cast<HealthCheck>(health);
+  c.frame_history_per_robot = r.i32();
+  try {
+    c.validate();
+  } catch (const std::invalid_argument& e) {
+    r.fail(std::string("corrupt config: ") + e.what());
+  }
+  return c;
+}
+
+void GlobalMapArchive::write_state(ArchiveWriter& w, const GlobalState& s) {
+  w.i64(s.next_id_);
+  w.i64(s.n_);
+  w.i64(s.capacity());
+  w.count(s.entities_.size());
+  for (const Entity& e : s.entities_) {
+    w.i64(e.id);
+    w.u8(static_cast<std::uint8_t>(e.kind));
+    w.pose(e.location);
+    w.f64(e.length_m);
+    w.boolean(e.parent.has_value());
+    w.i64(e.parent.value_or(0));
+    w.i64(e.offset);
+  }
+  // Lower triangle, column by column: each piece is contiguous in the buffer.
+  for (Eigen::Index j = 0; j < s.n_; ++j) {
+    w.raw(s.storage_.data() + j * s.storage_.outerStride() + j, static_cast<std::size_t>(s.n_ - j) * sizeof(double));
+  }
+}
+
+void GlobalMapArchive::read_state(ArchiveReader& r, GlobalState& s) {
+  const std::int64_t next_id = r.i64();
+  const std::int64_t n = r.i64();
+  const std::int64_t capacity = r.i64();
+  if (n < 0 || capacity < n || capacity > kMaxCapacity) {
+    r.fail("corrupt state: dimension " + std::to_string(n) + ", capacity " + std::to_string(capacity));
+  }
+  const std::size_t count = r.count(43);
+  std::vector<Entity> entities(count);
+  std::unordered_map<EntityId, std::size_t> index;
+  std::int64_t offset = 0;
+  for (std::size_t i = 0; i < count; ++i) {
+    Entity& e = entities[i];
+    e.id = r.i64();
+    const std::uint8_t kind = r.u8();
+    if (kind > static_cast<std::uint8_t>(EntityKind::kSegment)) r.fail("corrupt state: entity kind " + std::to_string(kind));
+    e.kind = static_cast<EntityKind>(kind);
+    e.location = r.pose();
+    e.length_m = r.f64();
+    const bool has_parent = r.boolean();
+    const std::int64_t parent = r.i64();
+    if (has_parent) e.parent = parent;
+    e.offset = r.i64();
+    if (e.id < 0 || e.id >= next_id || !index.emplace(e.id, i).second) {
+      r.fail("corrupt state: entity id " + std::to_string(e.id) + " (next id " + std::to_string(next_id) + ")");
+    }
+    if (e.offset != offset) r.fail("corrupt state: entity " + std::to_string(e.id) + " offset " + std::to_string(e.offset));
+    offset += spmap::dof(e.kind);
+  }
+  if (offset != n) r.fail("corrupt state: entities span " + std::to_string(offset) + " rows, dimension " + std::to_string(n));
+  for (const Entity& e : entities) {
+    if (e.parent && index.count(*e.parent) == 0) {
+      r.fail("corrupt state: entity " + std::to_string(e.id) + " has unknown parent " + std::to_string(*e.parent));
+    }
+  }
+  const auto triangle = static_cast<std::uint64_t>(n) * static_cast<std::uint64_t>(n + 1) / 2;
+  if (triangle > r.remaining() / sizeof(double)) r.fail("truncated: covariance of dimension " + std::to_string(n));
+  Eigen::MatrixXd storage = Eigen::MatrixXd::Zero(capacity, capacity);
+  for (Eigen::Index j = 0; j < n; ++j) {
+    r.raw(storage.data() + j * storage.outerStride() + j, static_cast<std::size_t>(n - j) * sizeof(double));
+  }
+  s.entities_ = std::move(entities);
+  s.index_ = std::move(index);
+  s.storage_ = std::move(storage);
+  s.n_ = n;
+  s.next_id_ = next_id;
+}
+
+void GlobalMapArchive::write(ArchiveWriter& w, const GlobalMap& map) {
+  write_config(w, map.config_);
+  write_state(w, map.state_);
+  w.count(map.robots_.size());
+  for (const auto& [id, rec] : map.robots_) {
+    w.i32(id);
+    w.boolean(rec.joined);
+    w.i64(rec.next_seq);
+    w.i64(rec.min_seq);
+    w.count(rec.frames.size());
+    for (const auto& [seq, slot] : rec.frames) {
+      w.i64(seq);
+      w.i64(slot.frame);
+      w.boolean(slot.robot.has_value());
+      w.i64(slot.robot.value_or(0));
+    }
+    w.count(rec.queue.size());
+    for (const auto& [seq, snapshot] : rec.queue) {
+      w.i64(seq);
+      write_local_map(w, snapshot);
+    }
+    w.count(rec.fused.size());
+    for (const std::int64_t seq : rec.fused) w.i64(seq);
+    w.count(rec.history.size());
+    for (const auto& [seq, frame] : rec.history) {
+      w.i64(seq);
+      w.pose(frame.first);
+      w.matrix3(frame.second);
+    }
+  }
+  w.count(map.submaps_.size());
+  for (const GlobalMap::SubmapRecord& s : map.submaps_) {
+    w.i64(s.frame);
+    w.i32(s.robot_id);
+    w.i64(s.seq);
+  }
+  w.count(map.paired_edges_.size());
+  for (const auto& [a, b] : map.paired_edges_) {
+    w.i64(a);
+    w.i64(b);
+  }
+  w.count(map.pending_sightings_.size());
+  for (const RobotSighting& s : map.pending_sightings_) write_sighting(w, s);
+  w.boolean(map.any_joined_);
+  w.boolean(map.resolving_);
+}
+
+GlobalMap GlobalMapArchive::read(ArchiveReader& r) {
+  GlobalMap map(read_config(r));
+  read_state(r, map.state_);
+  const GlobalState& state = map.state_;
+  const auto require_entity = [&](EntityId id, const std::string& what) {
+    if (!state.contains(id)) r.fail("corrupt map: " + what + " refers to unknown entity " + std::to_string(id));
+  };
+  const std::size_t robots = r.count(41);
+  for (std::size_t i = 0; i < robots; ++i) {
+    const int id = r.i32();
+    if (map.robots_.count(id) != 0) r.fail("corrupt map: robot " + std::to_string(id) + " twice");
+    GlobalMap::RobotRecord& rec = map.robots_[id];
+    const std::string who = "robot " + std::to_string(id);
+    rec.joined = r.boolean();
+    rec.next_seq = r.i64();
+    rec.min_seq = r.i64();
+    const std::size_t frames = r.count(25);
+    for (std::size_t k = 0; k < frames; ++k) {
+      const std::int64_t seq = r.i64();
+      GlobalMap::FrameSlot slot;
+      slot.frame = r.i64();
+      const bool has_robot = r.boolean();
+      const std::int64_t robot = r.i64();
+      if (has_robot) slot.robot = robot;
+      require_entity(slot.frame, who + " frame");
+      if (slot.robot) require_entity(*slot.robot, who + " pre-placed robot");
+      if (!rec.frames.emplace(seq, slot).second) r.fail("corrupt map: " + who + " frame seq repeated");
+    }
+    if (rec.joined && rec.frames.count(rec.next_seq) == 0) r.fail("corrupt map: " + who + " has no current frame");
+    const std::size_t queued = r.count(8);
+    for (std::size_t k = 0; k < queued; ++k) {
+      const std::int64_t seq = r.i64();
+      LocalMapSnapshot s = read_local_map(r);
+      if (s.seq != seq || s.robot_id != id) r.fail("corrupt map: " + who + " queue entry mismatch");
+      if (!rec.queue.emplace(seq, std::move(s)).second) r.fail("corrupt map: " + who + " queued seq repeated");
+    }
+    const std::size_t fused = r.count(8);
+    for (std::size_t k = 0; k < fused; ++k) rec.fused.insert(r.i64());
+    if (rec.fused.size() != fused) r.fail("corrupt map: " + who + " fused seq repeated");
+    const std::size_t history = r.count(104);
+    for (std::size_t k = 0; k < history; ++k) {
+      const std::int64_t seq = r.i64();
+      const Pose2 x_WL = r.pose();
+      const Eigen::Matrix3d cov = r.matrix3();
+      rec.history[seq] = {x_WL, cov};
+    }
+  }
+  const std::size_t submaps = r.count(20);
+  for (std::size_t i = 0; i < submaps; ++i) {
+    GlobalMap::SubmapRecord s;
+    s.frame = r.i64();
+    s.robot_id = r.i32();
+    s.seq = r.i64();
+    require_entity(s.frame, "submap");
+    map.submaps_.push_back(s);
+  }
+  const std::size_t edges = r.count(16);
+  for (std::size_t i = 0; i < edges; ++i) {
+    const EntityId a = r.i64();
+    const EntityId b = r.i64();
+    map.paired_edges_.insert({a, b});
+  }
+  const std::size_t pending = r.count(8);
+  for (std::size_t i = 0; i < pending; ++i) map.pending_sightings_.push_back(read_sighting(r));
+  map.any_joined_ = r.boolean();
+  map.resolving_ = r.boolean();
+  if (map.resolving_) r.fail("corrupt map: archived in the middle of resolving sightings");
+  return map;
+}
+
+void write_global_map(ArchiveWriter& w, const GlobalMap& map) { GlobalMapArchive::write(w, map); }
+
+GlobalMap read_global_map(ArchiveReader& r) { return GlobalMapArchive::read(r); }
+
+void write_archive(const GlobalMap& map, std::ostream& out) {
+  std::string payload;
+  ArchiveWriter w(payload);
+  write_global_map(w, map);
+  write_framed(out, kMapMagic, kGlobalMapArchiveVersion, payload);
+  if (!out) throw std::runtime_error("write_archive: the stream failed");
+}
+
+GlobalMap read_archive(std::istream& in) {
+  std::uint32_t version = 0;
+  const std::string payload = read_framed(in, kMapMagic, kGlobalMapArchiveVersion, version);
+  ArchiveReader r(payload.data(), payload.size(), "global map archive");
+  GlobalMap map = read_global_map(r);
+  if (r.remaining() != 0) r.fail("corrupt: " + std::to_string(r.remaining()) + " bytes after the map");
+  return map;
+}
+
+// ---------------------------------------------------------------------------
+// Local maps and fusion reports
+
+void write_local_map(ArchiveWriter& w, const LocalMapSnapshot& s) {
+  w.i32(s.robot_id);
+  w.i64(s.seq);
+  w.i64(s.first_utime);
+  w.i64(s.last_utime);
+  w.pose(s.x_LR);
+  w.count(s.segments.size());
+  for (const SegmentEstimate& seg : s.segments) {
+    w.pose(seg.location);
+    w.f64(seg.length_m);
+  }
+  w.matrix(s.covariance);
+  w.count(s.scan_poses.size());
+  for (const ScanPose& p : s.scan_poses) {
+    w.i64(p.utime);
+    w.pose(p.x_LR);
+  }
+}
+
+LocalMapSnapshot read_local_map(ArchiveReader& r) {
+  LocalMapSnapshot s;
+  s.robot_id = r.i32();
+  s.seq = r.i64();
+  s.first_utime = r.i64();
+  s.last_utime = r.i64();
+  s.x_LR = r.pose();
+  s.segments.resize(r.count(32));
+  for (SegmentEstimate& seg : s.segments) {
+    seg.location = r.pose();
+    seg.length_m = r.f64();
+  }
+  s.covariance = r.matrix();
+  s.scan_poses.resize(r.count(32));
+  for (ScanPose& p : s.scan_poses) {
+    p.utime = r.i64();
+    p.x_LR = r.pose();
+  }
+  return s;
+}
+
+void write_fusion_report(ArchiveWriter& w, const FusionReport& f) {
+  w.i32(f.robot_id);
+  w.i64(f.seq);
+  w.i32(f.local_segments);
+  w.boolean(f.anchored_backward);
+  w.i64(f.pairs_considered);
+  w.i64(f.gate_rejected);
+  for (const int v : {f.chi2_rejected, f.overlap_rejected, f.jc_candidates, f.jc_rejected, f.pairings_accepted,
+                      f.update_rows, f.rows_dropped, f.rows_kept}) {
+    w.i32(v);
+  }
+  w.f64(f.update_distance2);
+  w.i64(f.update_dimension);
+  for (const int v : {f.segments_extended, f.local_segments_removed, f.global_segments_fused,
+                      f.global_fusions_rejected, f.new_segments}) {
+    w.i32(v);
+  }
+  w.boolean(f.new_submap.has_value());
+  w.i64(f.new_submap.value_or(0));
+  w.pose(f.x_WL_next);
+  w.u8(static_cast<std::uint8_t>(f.health_scope));
+  write_optional(w, f.min_ldlt_pivot);
+  write_optional(w, f.min_eigenvalue);
+  const MapCounts& c = f.size_after;
+  for (const int v : {c.segments, c.submaps, c.robots_joined, c.graph_edges, c.queued_local_maps}) w.i32(v);
+  w.i64(c.state_dimension);
+  const PhaseTimes& t = f.time;
+  for (const double v : {t.validate_s, t.augment_s, t.gate_s, t.individual_s, t.joint_s, t.update_s, t.geometric_s,
+                         t.frames_s, t.remove_s, t.health_s, t.total_s}) {
+    w.f64(v);
+  }
+}
+
+FusionReport read_fusion_report(ArchiveReader& r) {
+  FusionReport f;
+  f.robot_id = r.i32();
+  f.seq = r.i64();
+  f.local_segments = r.i32();
+  f.anchored_backward = r.boolean();
+  f.pairs_considered = r.i64();
+  f.gate_rejected = r.i64();
+  for (int* v : {&f.chi2_rejected, &f.overlap_rejected, &f.jc_candidates, &f.jc_rejected, &f.pairings_accepted,
+                 &f.update_rows, &f.rows_dropped, &f.rows_kept}) {
+    *v = r.i32();
+  }
+  f.update_distance2 = r.f64();
+  f.update_dimension = r.i64();
+  for (int* v : {&f.segments_extended, &f.local_segments_removed, &f.global_segments_fused,
+                 &f.global_fusions_rejected, &f.new_segments}) {
+    *v = r.i32();
+  }
+  const bool has_submap = r.boolean();
+  const std::int64_t submap = r.i64();
+  if (has_submap) f.new_submap = submap;
+  f.x_WL_next = r.pose();
+  const std::uint8_t scope = r.u8();
+  if (scope > static_cast<std::uint8_t>(HealthCheck::kFullEigen)) r.fail("corrupt: health scope " + std::to_string(scope));
+  f.health_scope = static_cast<HealthCheck>(scope);
+  f.min_ldlt_pivot = read_optional(r);
+  f.min_eigenvalue = read_optional(r);
+  MapCounts& c = f.size_after;
+  for (int* v : {&c.segments, &c.submaps, &c.robots_joined, &c.graph_edges, &c.queued_local_maps}) *v = r.i32();
+  c.state_dimension = r.i64();
+  PhaseTimes& t = f.time;
+  for (double* v : {&t.validate_s, &t.augment_s, &t.gate_s, &t.individual_s, &t.joint_s, &t.update_s, &t.geometric_s,
+                    &t.frames_s, &t.remove_s, &t.health_s, &t.total_s}) {
+    *v = r.f64();
+  }
+  return f;
+}
+
+bool same_config(const GlobalMapConfig& a, const GlobalMapConfig& b) {
+  std::string sa;
+  std::string sb;
+  ArchiveWriter wa(sa);
+  ArchiveWriter wb(sb);
+  GlobalMapArchive::write_config(wa, a);
+  GlobalMapArchive::write_config(wb, b);
+  return sa == sb;
+}
+
+}  // namespace lmf::fusion
