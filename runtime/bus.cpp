@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <exception>
+#include <iostream>
+#include <span>
+#include <sstream>
 
 namespace lmf::runtime {
 
@@ -13,16 +16,50 @@ struct Bus::Subscription {
   lcm::Subscription* lcm_subscription = nullptr;
 };
 
-Bus::Bus(const std::string& url) : url_(url), lcm_(url) {}
+Bus::Bus(const std::string& url, std::optional<auth::Config> auth)
+    : url_(url), lcm_(std::make_shared<lcm::LCM>(url)) {
+  configure_auth(std::move(auth));
+}
+
+Bus::Bus(Bus& network, std::optional<auth::Config> auth) : url_(network.url_), lcm_(network.lcm_) {
+  configure_auth(std::move(auth));
+}
+
+void Bus::configure_auth(std::optional<auth::Config> auth) {
+  if (!auth) return;
+  auth->validate();
+  first_seq_ = auth::wall_clock_first_seq();
+  signer_ = std::make_unique<auth::Signer>(auth->identity, *auth->keys->find(auth->identity), first_seq_);
+  verifier_ = std::make_unique<auth::Verifier>(auth->keys, auth->replay_window);
+}
 
 Bus::~Bus() {
   for (const auto& s : subscriptions_) {
-    if (s->lcm_subscription != nullptr) lcm_.unsubscribe(s->lcm_subscription);
+    if (s->lcm_subscription != nullptr) lcm_->unsubscribe(s->lcm_subscription);
+  }
+  if (signer_) {
+    std::ostringstream line;  // one write: processes sharing a terminal do not interleave
+    line << signer_->principal() << ": authentication: " << verifier_->verified() << " messages verified, "
+         << signer_->next_seq() - first_seq_ << " signed";
+    std::int64_t rejected = 0;
+    std::ostringstream reasons;
+    for (const auto& [name, count] : rejects_.nonzero()) {
+      if (name.rfind("auth_", 0) != 0) continue;
+      reasons << (rejected == 0 ? " (" : ", ") << name << " " << count;
+      rejected += count;
+    }
+    line << ", " << rejected << " rejected" << (rejected > 0 ? reasons.str() + ")" : std::string()) << '\n';
+    std::cerr << line.str() << std::flush;
   }
 }
 
 bool Bus::publish_raw(const std::string& channel, const std::vector<std::uint8_t>& bytes) {
-  if (!good() || lcm_.publish(channel, bytes.data(), static_cast<unsigned int>(bytes.size())) != 0) {
+  const std::vector<std::uint8_t>* message = &bytes;
+  if (signer_) {
+    signer_->sign(channel, bytes, signed_);
+    message = &signed_;
+  }
+  if (!good() || lcm_->publish(channel, message->data(), static_cast<unsigned int>(message->size())) != 0) {
     ++publish_failures_;
     return false;
   }
@@ -35,7 +72,7 @@ int Bus::subscribe(const std::string& channel, RawHandler handler) {
   subscription->id = next_id_++;
   subscription->pattern = channel;
   subscription->handler = std::move(handler);
-  subscription->lcm_subscription = lcm_.subscribeFunction(channel, &Bus::dispatch, subscription.get());
+  subscription->lcm_subscription = lcm_->subscribeFunction(channel, &Bus::dispatch, subscription.get());
   const int id = subscription->id;
   subscriptions_.push_back(std::move(subscription));
   return id;
@@ -45,7 +82,7 @@ void Bus::unsubscribe(int subscription_id) {
   const auto it = std::find_if(subscriptions_.begin(), subscriptions_.end(),
                                [subscription_id](const auto& s) { return s->id == subscription_id; });
   if (it == subscriptions_.end()) return;
-  if ((*it)->lcm_subscription != nullptr) lcm_.unsubscribe((*it)->lcm_subscription);
+  if ((*it)->lcm_subscription != nullptr) lcm_->unsubscribe((*it)->lcm_subscription);
   subscriptions_.erase(it);
 }
 
@@ -53,7 +90,21 @@ void Bus::unsubscribe(int subscription_id) {
 void Bus::dispatch(const lcm::ReceiveBuffer* buffer, const std::string& channel, Subscription* subscription) {
   Bus& bus = *subscription->bus;
   try {
-    subscription->handler(channel, buffer->data, static_cast<std::size_t>(buffer->data_size));
+    const std::span<const std::uint8_t> message(static_cast<const std::uint8_t*>(buffer->data),
+                                                static_cast<std::size_t>(buffer->data_size));
+    std::size_t size = message.size();
+    if (bus.verifier_) {
+      // Before any decoding: nothing unauthenticated reaches a handler.
+      const auto payload = bus.verifier_->verify(channel, message);
+      if (!payload) {
+        bus.rejects_.record(payload.rejection(), channel);
+        return;
+      }
+      size = payload.value().size();
+    } else {
+      size = auth::unverified_payload_size(message.data(), message.size());
+    }
+    subscription->handler(channel, buffer->data, size);
   } catch (const std::exception& e) {
     bus.rejects_.record(Rejection{RejectReason::kHandlerError, e.what()}, channel);
   } catch (...) {
@@ -65,7 +116,7 @@ int Bus::handle_pending(int max_messages) {
   if (!good()) return -1;
   int handled = 0;
   while (handled < max_messages) {
-    const int status = lcm_.handleTimeout(0);
+    const int status = lcm_->handleTimeout(0);
     if (status < 0) return handled > 0 ? handled : status;
     if (status == 0) break;
     ++handled;
@@ -73,6 +124,6 @@ int Bus::handle_pending(int max_messages) {
   return handled;
 }
 
-int Bus::fileno() { return good() ? lcm_.getFileno() : -1; }
+int Bus::fileno() { return good() ? lcm_->getFileno() : -1; }
 
 }  // namespace lmf::runtime

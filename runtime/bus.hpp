@@ -9,6 +9,15 @@
 // by a handler crosses LCM's C callback: it is caught, counted
 // (handler_error), logged to stderr and the message dropped.
 //
+// Authentication (runtime/auth.hpp), optional: with an auth::Config the Bus
+// appends a signed trailer to every message it publishes, and verifies (tag,
+// replay window, who may say what) every message it receives BEFORE a handler
+// sees it; a message that fails is counted in rejects() under an auth_*
+// reason, logged rate-limited and dropped. Handlers always get the bare LCM
+// encoding. Without a Config nothing is signed or checked, and a signed
+// message's trailer is removed unverified (a keyless listener still reads a
+// secured system).
+//
 // Threading: use a Bus from one thread (the event loop's). Do not subscribe or
 // unsubscribe from inside a handler.
 #pragma once
@@ -17,12 +26,14 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include <lcm/lcm-cpp.hpp>
 
+#include "runtime/auth.hpp"
 #include "runtime/convert.hpp"
 #include "runtime/rejection.hpp"
 
@@ -35,15 +46,24 @@ class Bus {
 
   // Empty url: LCM_DEFAULT_URL or LCM's default. Check good() afterwards: a bad
   // URL or a network without a multicast route gives a Bus that is not good.
-  explicit Bus(const std::string& url = "");
+  // `auth`: sign and verify (throws std::invalid_argument if it is not valid);
+  // sequence numbers start at the wall clock in microseconds.
+  explicit Bus(const std::string& url = "", std::optional<auth::Config> auth = std::nullopt);
+  // Another endpoint on `network`'s LCM instance with its own authentication
+  // (or none), subscriptions and rejects: for tests where several principals
+  // share one memq:// "network" in one process. handle_pending() of any of them
+  // dispatches to all; the LCM lives until the last of them is destroyed.
+  Bus(Bus& network, std::optional<auth::Config> auth);
+  // With authentication, writes one summary line to stderr (what was verified and rejected).
   ~Bus();
   Bus(const Bus&) = delete;
   Bus& operator=(const Bus&) = delete;
 
-  bool good() const { return lcm_.good(); }
+  bool good() const { return lcm_->good(); }
   const std::string& url() const { return url_; }
 
-  // Encodes and sends; false (and counted in publish_failures()) if LCM refused.
+  // Encodes, signs if authenticated, and sends; false (and counted in
+  // publish_failures()) if LCM refused.
   template <class Msg>
   bool publish(const std::string& channel, const Msg& msg) {
     return publish_raw(channel, encode_message(msg));
@@ -81,21 +101,34 @@ class Bus {
   // memq:// in LCM 1.3.1); -1 if the provider has none. Owned by LCM.
   int fileno();
 
-  // Decode failures from subscribe_message and handler errors, by reason.
+  // Authentication and decode failures from subscribe_message and handler errors, by reason.
   RejectCounter& rejects() { return rejects_; }
   const RejectCounter& rejects() const { return rejects_; }
   std::int64_t handler_errors() const { return rejects_.count(RejectReason::kHandlerError); }
   std::int64_t publish_failures() const { return publish_failures_; }
 
-  // The underlying LCM instance, for what the Bus does not wrap (e.g. queue capacity).
-  lcm::LCM& lcm() { return lcm_; }
+  // The principal this Bus signs as, if authenticated.
+  const std::string* identity() const { return signer_ ? &signer_->principal() : nullptr; }
+  bool authenticated() const { return verifier_ != nullptr; }
+  // Messages that passed verification (0 without authentication).
+  std::int64_t messages_verified() const { return verifier_ ? verifier_->verified() : 0; }
+
+  // The underlying LCM instance, for what the Bus does not wrap (e.g. queue
+  // capacity). Bypasses authentication both ways.
+  lcm::LCM& lcm() { return *lcm_; }
 
  private:
   struct Subscription;
   static void dispatch(const lcm::ReceiveBuffer* buffer, const std::string& channel, Subscription* subscription);
 
+  void configure_auth(std::optional<auth::Config> auth);
+
   std::string url_;
-  lcm::LCM lcm_;
+  std::shared_ptr<lcm::LCM> lcm_;
+  std::unique_ptr<auth::Signer> signer_;
+  std::unique_ptr<auth::Verifier> verifier_;
+  std::vector<std::uint8_t> signed_;  // reused buffer: payload + trailer
+  std::uint64_t first_seq_ = 0;
   std::vector<std::unique_ptr<Subscription>> subscriptions_;
   int next_id_ = 1;
   RejectCounter rejects_;

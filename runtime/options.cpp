@@ -21,7 +21,33 @@ void add_common_options(po::options_description& description, CommonOptions& opt
        "LCM provider URL (default: $LCM_DEFAULT_URL; when empty, LCM's udpm://239.255.76.67:7667?ttl=0); "
        "memq:// keeps every message inside the process")
       ("channel-prefix", po::value<std::string>(&options.channel_prefix)->default_value(options.channel_prefix),
-       "prefix of every LCM channel name: upper-case letters, digits and '_'");
+       "prefix of every LCM channel name: upper-case letters, digits and '_'")
+      ("keys", po::value<std::string>(&options.keys_file),
+       "keys file (lines 'principal hex-key', mode 600): sign every message published and accept only messages "
+       "signed by its principals, fresh and allowed for the sender; without it nothing is signed or checked")
+      ("identity", po::value<std::string>(&options.identity),
+       "principal to sign as with --keys (default: server, player, monitor or robot<id>, by process)");
+}
+
+std::optional<auth::Config> auth_config(const CommonOptions& options, std::string_view default_identity) {
+  if (options.keys_file.empty()) {
+    if (!options.identity.empty()) throw std::invalid_argument("--identity needs --keys");
+    return std::nullopt;
+  }
+  auth::Config config;
+  config.identity = options.identity.empty() ? std::string(default_identity) : options.identity;
+  config.keys = std::make_shared<const auth::KeyRing>(auth::load_keys_file(options.keys_file));
+  config.validate(options.keys_file);
+  return config;
+}
+
+std::optional<auth::Config> auth_config_or_exit(const CommonOptions& options, std::string_view default_identity,
+                                                std::string_view program) {
+  try {
+    return auth_config(options, default_identity);
+  } catch (const std::exception& e) {
+    exit_with_error(program, e.what(), 2);
+  }
 }
 
 ParseResult parse_options(int argc, const char* const argv[], const po::options_description& description,

@@ -4,15 +4,21 @@
 //   --lcm-url URL          LCM provider; default $LCM_DEFAULT_URL, else LCM's
 //                          built-in udpm://239.255.76.67:7667?ttl=0
 //   --channel-prefix P     prefix of every channel name (default LMF_)
+//   --keys FILE            sign and verify every message (runtime/auth.hpp);
+//                          without it nothing is signed or checked
+//   --identity PRINCIPAL   the principal to sign as (default: the process's own,
+//                          e.g. robot<id> for lmf-agent, server for lmf-server)
 //   --help                 print the usage and exit 0
 #pragma once
 
+#include <optional>
 #include <string>
 #include <string_view>
 
 #include <boost/program_options/options_description.hpp>
 #include <boost/program_options/variables_map.hpp>
 
+#include "runtime/auth.hpp"
 #include "runtime/channels.hpp"
 
 namespace lmf::runtime {
@@ -20,9 +26,11 @@ namespace lmf::runtime {
 struct CommonOptions {
   std::string lcm_url;  // empty: let LCM pick (LCM_DEFAULT_URL, then its default)
   std::string channel_prefix = std::string(kDefaultChannelPrefix);
+  std::string keys_file;  // empty: no authentication
+  std::string identity;   // empty: the process's default principal
 };
 
-// Adds --lcm-url, --channel-prefix and --help, writing into `options`.
+// Adds --lcm-url, --channel-prefix, --keys, --identity and --help, writing into `options`.
 void add_common_options(boost::program_options::options_description& description, CommonOptions& options);
 
 struct ParseResult {
@@ -42,6 +50,15 @@ ParseResult parse_options(int argc, const char* const argv[], const boost::progr
 void parse_options_or_exit(int argc, const char* const argv[],
                            const boost::program_options::options_description& description, std::string_view program,
                            std::string_view summary, boost::program_options::variables_map* variables = nullptr);
+
+// The Bus authentication of --keys/--identity: nullopt without --keys; else
+// the keys file loaded (permissions checked) and the identity (given, or
+// `default_identity`) validated against it. Throws std::invalid_argument
+// naming the file and line, or for --identity without --keys.
+std::optional<auth::Config> auth_config(const CommonOptions& options, std::string_view default_identity);
+// auth_config() for main(): prints "<program>: error: ..." and exits 2 on an error.
+std::optional<auth::Config> auth_config_or_exit(const CommonOptions& options, std::string_view default_identity,
+                                                std::string_view program);
 
 // Prints "<program>: error: <message>" to stderr and exits with `exit_code`
 // (e.g. after a config file or the bus fails to load).

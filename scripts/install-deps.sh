@@ -10,6 +10,7 @@ packages=(
   libboost-dev libboost-program-options-dev
   nlohmann-json3-dev
   zlib1g-dev
+  libssl-dev
   libgtest-dev libgmock-dev
   libbenchmark-dev
   iproute2 util-linux
