@@ -4,6 +4,7 @@
 #include <cmath>
 #include <iostream>
 #include <stdexcept>
+#include <system_error>
 #include <utility>
 
 #include "lmf/mission/offline_mission.hpp"
@@ -42,6 +43,15 @@ AgentNode::AgentNode(rt::Bus& bus, rt::EventLoop& loop, AgentOptions options)
       options_((options.validate(), std::move(options))),
       local_map_(options_.local_map, options_.robot_id),
       drop_random_(options_.drop_seed) {
+  if (!options_.state_dir.empty()) {
+    std::error_code error;
+    std::filesystem::create_directories(options_.state_dir, error);
+    if (error) {
+      throw AgentStateError("cannot create the state folder " + options_.state_dir.string() + ": " + error.message());
+    }
+    state_file_ = agent_state_file(options_.state_dir, options_.robot_id);
+    if (const std::optional<AgentState> state = load_agent_state(state_file_)) restore(*state);
+  }
   const rt::Channels& ch = options_.channels;
   subscriptions_.push_back(bus_.subscribe(ch.scan(options_.robot_id), [this](const std::string& c, const void* d,
                                                                              std::size_t n) { on_scan(c, d, n); }));
@@ -55,6 +65,65 @@ AgentNode::AgentNode(rt::Bus& bus, rt::EventLoop& loop, AgentOptions options)
   const auto tick = std::max(std::chrono::milliseconds(5), options_.resend_interval / 4);
   timers_.push_back(loop_.every(tick, [this] { resend_due(); }));
   timers_.push_back(loop_.every(options_.status_interval, [this] { publish_status(); }));
+  // Restarted: what the server may never have received goes out at once.
+  for (auto& [seq, map] : pending_) {
+    ++counters_.map_resends;
+    transmit(seq, map);
+  }
+}
+
+void AgentNode::restore(const AgentState& state) {
+  if (state.robot_id != options_.robot_id) {
+    throw AgentStateError(state_file_.string() + " holds the state of robot " + to_string(state.robot_id) +
+                          ", not " + to_string(options_.robot_id));
+  }
+  if (state.origin) {
+    const AgentState::Origin& o = *state.origin;
+    local_map_.resume(state.local_map_seq, o.utime, o.odometry);
+    origin_ = o;
+    last_processed_ = ProcessedScan{o.scan_seq, o.utime, o.odometry};
+    next_scan_seq_ = o.scan_seq + 1;
+    last_scan_utime_ = o.utime;
+    last_ack_ = o.ack;
+    any_gap_once_ = true;
+  }
+  for (const auto& [seq, bytes] : state.unacknowledged) pending_[seq].bytes = bytes;
+  shipped_final_x_LR_ = state.shipped_final_x_LR;
+  if (state.frame) frame_ = Frame{state.frame->map_seq, state.frame->fusion_count, state.frame->x_WL};
+  mission_ended_ = state.mission_ended;
+  counters_.maps_shipped = state.maps_shipped;
+  counters_.maps_acknowledged = state.maps_acknowledged;
+  counters_.resumed = true;
+  std::cerr << "lmf-agent " << options_.robot_id << ": resumed from " << state_file_.string() << ": local map "
+            << local_map_.seq()
+            << (origin_ ? " from its origin at scan " + to_string(origin_->scan_seq) : std::string(" (no scan yet)"))
+            << ", " << pending_.size() << " unacknowledged local map(s) to resend"
+            << (mission_ended_ ? ", mission ended" : "") << "\n";
+}
+
+void AgentNode::persist() {
+  if (state_file_.empty()) return;
+  AgentState state;
+  state.robot_id = options_.robot_id;
+  state.local_map_seq = local_map_.seq();
+  state.origin = origin_;
+  for (const auto& [seq, map] : pending_) state.unacknowledged[seq] = map.bytes;
+  state.shipped_final_x_LR = shipped_final_x_LR_;
+  if (frame_) state.frame = AgentState::Frame{frame_->map_seq, frame_->fusion_count, frame_->x_WL};
+  state.mission_ended = mission_ended_;
+  state.maps_shipped = counters_.maps_shipped;
+  state.maps_acknowledged = counters_.maps_acknowledged;
+  try {
+    save_agent_state(state_file_, state);
+    ++counters_.state_writes;
+  } catch (const AgentStateError& e) {
+    // A full or failing disk must not stop the robot: it runs on, without the
+    // guarantee of a restart, and says so.
+    if (counters_.state_write_failures++ == 0 || counters_.state_write_failures % 100 == 0) {
+      std::cerr << "lmf-agent " << options_.robot_id << ": state not saved (" << counters_.state_write_failures
+                << " failure(s)): " << e.what() << "\n";
+    }
+  }
 }
 
 AgentNode::~AgentNode() {
@@ -89,7 +158,7 @@ void AgentNode::on_scan(const std::string& channel, const void* data, std::size_
            "scan seq " + to_string(s.seq) + " after " + to_string(next_scan_seq_ - 1) + " was processed", channel);
     return;
   }
-  if (s.seq - next_scan_seq_ > options_.max_seq_gap) {
+  if (!any_gap_once_ && s.seq - next_scan_seq_ > options_.max_seq_gap) {
     reject(rt::RejectReason::kOutOfRange,
            "scan seq " + to_string(s.seq) + " is more than " + to_string(options_.max_seq_gap) + " ahead of " +
                to_string(next_scan_seq_),
@@ -121,6 +190,11 @@ void AgentNode::process(const rt::RobotScan& scan) {
   }
   const double elapsed_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  if (any_gap_once_) {
+    any_gap_once_ = false;
+    std::cerr << "lmf-agent " << options_.robot_id << ": first scan after the restart: " << scan.seq << ", "
+              << scan.seq - next_scan_seq_ << " scan(s) since the persisted origin bridged by odometry\n";
+  }
   window_scan_times_ms_.push_back(elapsed_ms);
   all_scan_times_ms_.push_back(elapsed_ms);
   counters_.scans_missed += scan.seq - next_scan_seq_;
@@ -137,8 +211,12 @@ void AgentNode::process(const rt::RobotScan& scan) {
     counters_.covariance_always_ok = false;
   }
 
-  // The protocol: the map a scan made ship goes out before that scan's ack.
-  if (report.should_ship) ship();
+  // The protocol: the map a scan made ship goes out before that scan's ack;
+  // and it is on disk before it goes out (nothing shipped is lost by a crash).
+  std::optional<std::int64_t> shipped;
+  const bool new_origin = report.should_ship || !origin_;
+  if (report.should_ship) shipped = ship();
+  last_processed_ = ProcessedScan{scan.seq, scan.scan.utime, scan.scan.odometry};
 
   rt::ScanAck ack;
   ack.utime = scan.scan.utime;
@@ -148,6 +226,11 @@ void AgentNode::process(const rt::RobotScan& scan) {
   ack.x_LR = local_map_.x_LR();
   ack.covariance = local_map_.robot_covariance();
   last_ack_ = ack;
+  if (new_origin) {
+    origin_ = AgentState::Origin{scan.seq, scan.scan.utime, scan.scan.odometry, ack};
+    persist();
+  }
+  if (shipped) transmit(*shipped, pending_.at(*shipped));
   send_ack(ack);
 }
 
@@ -164,7 +247,7 @@ void AgentNode::send_ack(const rt::ScanAck& ack) {
 
 // ---- local maps -------------------------------------------------------------------------
 
-void AgentNode::ship() {
+std::optional<std::int64_t> AgentNode::ship() {
   LocalMapSnapshot snapshot = local_map_.snapshot();
   local_map_.reset();
   map_has_scans_ = false;
@@ -177,11 +260,10 @@ void AgentNode::ship() {
     ++counters_.ship_failures;
     std::cerr << "lmf-agent " << options_.robot_id << ": local map " << snapshot.seq
               << " not shipped: " << msg.rejection().describe() << "\n";
-    return;
+    return std::nullopt;
   }
-  PendingMap& pending = pending_[snapshot.seq];
-  pending.bytes = rt::encode_message(msg.value());
-  transmit(snapshot.seq, pending);
+  pending_[snapshot.seq].bytes = rt::encode_message(msg.value());
+  return snapshot.seq;
 }
 
 void AgentNode::transmit(std::int64_t seq, PendingMap& map) {
@@ -230,6 +312,7 @@ void AgentNode::on_local_map_ack(const std::string& channel, const void* data, s
   pending_.erase(it);
   ++counters_.maps_acknowledged;
   if (a.status == rt::LocalMapAck::Status::kQueued) ++counters_.maps_queued;
+  persist();  // a restart will not resend it
 }
 
 // ---- corrected frames ----------------------------------------------------------------------
@@ -286,7 +369,18 @@ void AgentNode::on_mission_end(const std::string& channel, const void* data, std
   const auto& ids = end.value().robot_ids;
   if (mission_ended_ || std::find(ids.begin(), ids.end(), options_.robot_id) == ids.end()) return;
   mission_ended_ = true;
-  if (map_has_scans_) ship();  // so every scan belongs to a fused local map
+  if (!map_has_scans_) {
+    persist();
+    return;
+  }
+  // Ship the unfinished map so every scan belongs to a fused local map; the
+  // next (empty) map begins at the last scan processed.
+  const std::optional<std::int64_t> shipped = ship();
+  if (last_processed_ && last_ack_) {
+    origin_ = AgentState::Origin{last_processed_->seq, last_processed_->utime, last_processed_->odometry, *last_ack_};
+  }
+  persist();
+  if (shipped) transmit(*shipped, pending_.at(*shipped));
 }
 
 // ---- status -----------------------------------------------------------------------------------

@@ -25,12 +25,24 @@
 // agent may be ahead (it shipped maps the server has not fused yet); it then
 // chains the final x_LR of the maps in between (kept since shipping).
 //
+// Restart (AgentOptions::state_dir, robot_agent/agent_state.hpp): the agent
+// persists its chain of local maps at each new map origin (the first scan, each
+// ship — before the map is published), each acknowledgement and the mission
+// end. A new agent on the same state resumes: it resends the unacknowledged
+// maps at once, continues local map `seq` from the persisted origin (the scans
+// processed since are lost; the first scan after the restart predicts with the
+// odometry since the origin: LocalMap::resume) and re-acks the origin scan if
+// the player resends it. The first scan after a restart may be any number of
+// seqs ahead (the gap is what was lost; max_seq_gap applies from then on).
+//
 // Never blocks: publishing is LCM's non-blocking send, resends and status run
-// on the event loop's timers. Threading: everything runs on the loop's thread.
+// on the event loop's timers (state writes are synchronous: a few per local
+// map, each an fsync). Threading: everything runs on the loop's thread.
 #pragma once
 
 #include <chrono>
 #include <cstdint>
+#include <filesystem>
 #include <map>
 #include <optional>
 #include <random>
@@ -38,6 +50,7 @@
 #include <vector>
 
 #include "lmf/local_map/local_map.hpp"
+#include "robot_agent/agent_state.hpp"
 #include "runtime/bus.hpp"
 #include "runtime/channels.hpp"
 #include "runtime/event_loop.hpp"
@@ -57,6 +70,9 @@ struct AgentOptions {
   // dropped with this probability in [0, 1), from a generator seeded with drop_seed.
   double drop_local_maps = 0.0;
   std::uint64_t drop_seed = 1;
+  // Folder of the persisted state (agent_state_file(state_dir, robot_id));
+  // empty: nothing persisted. Created if missing.
+  std::filesystem::path state_dir;
   // Throws std::invalid_argument naming the bad field.
   void validate() const;
 };
@@ -77,12 +93,19 @@ struct AgentCounters {
   std::int64_t scan_errors = 0;        // LocalMap threw on a scan that decoded fine
   std::int64_t corrected_frames = 0;   // frame updates applied
   bool covariance_always_ok = true;    // every scan's covariance check passed
+  bool resumed = false;                // started from a persisted state
+  std::int64_t state_writes = 0;
+  std::int64_t state_write_failures = 0;  // logged; the agent keeps going
 };
 
 class AgentNode {
  public:
-  // Subscribes and starts the timers. Throws std::invalid_argument for bad
-  // options. The bus and loop must outlive the node.
+  // Loads the persisted state (if state_dir is set and holds one), subscribes,
+  // starts the timers and resends the unacknowledged maps. Throws
+  // std::invalid_argument for bad options, AgentStateError for a state that
+  // cannot be read or trusted (corrupt, another robot's): never silently
+  // started afresh, which would resend seqs the server already holds. The bus
+  // and loop must outlive the node.
   AgentNode(runtime::Bus& bus, runtime::EventLoop& loop, AgentOptions options);
   ~AgentNode();
   AgentNode(const AgentNode&) = delete;
@@ -119,9 +142,19 @@ class AgentNode {
     Pose2 x_WL;
   };
 
+  struct ProcessedScan {  // the latest scan processed: the next map's origin if it ships
+    std::int64_t seq = 0;
+    std::int64_t utime = 0;
+    Pose2 odometry;
+  };
+
   void on_scan(const std::string& channel, const void* data, std::size_t size);
   void process(const runtime::RobotScan& scan);
-  void ship();
+  // Snapshot, reset, keep the encoded map as pending (not yet sent); its seq
+  // if it could be encoded.
+  std::optional<std::int64_t> ship();
+  void restore(const AgentState& state);
+  void persist();
   void transmit(std::int64_t seq, PendingMap& map);
   void resend_due();
   void on_local_map_ack(const std::string& channel, const void* data, std::size_t size);
@@ -142,6 +175,10 @@ class AgentNode {
   std::optional<std::int64_t> last_scan_utime_;
   std::optional<runtime::ScanAck> last_ack_;  // re-sent for a duplicate scan
   bool map_has_scans_ = false;                // the current local map holds a scan
+  std::optional<ProcessedScan> last_processed_;
+  std::optional<AgentState::Origin> origin_;  // of the local map in progress
+  bool any_gap_once_ = false;                 // restarted: the next scan may be any seq ahead
+  std::filesystem::path state_file_;          // empty: not persisted
 
   std::map<std::int64_t, PendingMap> pending_;        // shipped, not acked
   std::map<std::int64_t, Pose2> shipped_final_x_LR_;  // per shipped map, for chaining frames

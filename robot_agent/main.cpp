@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <exception>
 #include <iostream>
+#include <memory>
 #include <sstream>
 #include <string>
 
@@ -27,6 +28,7 @@ int main(int argc, char** argv) {
   int resend_ms = 1000;
   double drop = 0.0;
   std::uint64_t drop_seed = 1;
+  std::string state_dir;
   po::options_description description("Options");
   rt::add_common_options(description, common);
   description.add_options()
@@ -36,7 +38,11 @@ int main(int argc, char** argv) {
        "resend an unacknowledged local map after this many ms")
       ("drop-local-maps", po::value(&drop)->default_value(drop),
        "for tests: drop this fraction in [0, 1) of local-map transmissions (first sends and resends)")
-      ("drop-seed", po::value(&drop_seed)->default_value(drop_seed), "seed of the simulated loss");
+      ("drop-seed", po::value(&drop_seed)->default_value(drop_seed), "seed of the simulated loss")
+      ("state", po::value(&state_dir),
+       "folder of the persisted state (agent<id>.state, created if missing): written at each new local map\n"
+       "origin, ship and ack; a restart on the same folder resends the unacknowledged maps and continues\n"
+       "the chain of local maps (scans since the last ship are lost, bridged by odometry)");
   rt::parse_options_or_exit(argc, argv, description, kProgram,
                             "Runs one robot's EKF local map: scans in, local maps out (resent until acknowledged),\n"
                             "scan acks, corrected frames in, status every 200 ms.");
@@ -49,15 +55,22 @@ int main(int argc, char** argv) {
     options.resend_interval = std::chrono::milliseconds(resend_ms);
     options.drop_local_maps = drop;
     options.drop_seed = drop_seed;
+    options.state_dir = state_dir;
     options.validate();
   } catch (const std::exception& e) {
     rt::exit_with_error(kProgram, e.what(), 2);
   }
 
-  rt::Bus bus(common.lcm_url);
+  rt::Bus bus(common.lcm_url, rt::auth_config_or_exit(common, rt::auth::robot_principal(robot_id), kProgram));
   if (!bus.good()) rt::exit_with_error(kProgram, "cannot open LCM at '" + bus.url() + "'");
   rt::EventLoop loop(bus);
-  lmf::robot_agent::AgentNode agent(bus, loop, options);
+  std::unique_ptr<lmf::robot_agent::AgentNode> node;
+  try {
+    node = std::make_unique<lmf::robot_agent::AgentNode>(bus, loop, options);  // loads --state
+  } catch (const std::exception& e) {
+    rt::exit_with_error(kProgram, e.what(), 2);
+  }
+  lmf::robot_agent::AgentNode& agent = *node;
   std::cerr << kProgram << " " << robot_id << ": listening on " << options.channels.scan(robot_id) << "\n";
   loop.run();
   agent.publish_status();
