@@ -32,6 +32,7 @@ void AgentOptions::validate() const {
   if (resend_interval.count() <= 0) throw std::invalid_argument("resend interval must be > 0 ms");
   if (status_interval.count() <= 0) throw std::invalid_argument("status interval must be > 0 ms");
   if (max_seq_gap <= 0) throw std::invalid_argument("max_seq_gap must be > 0");
+  if (test_stall_after_scan && *test_stall_after_scan < 0) throw std::invalid_argument("stall scan seq must be >= 0");
   if (!(drop_local_maps >= 0.0 && drop_local_maps < 1.0)) {
     throw std::invalid_argument("drop fraction must be in [0, 1), got " + to_string(drop_local_maps));
   }
@@ -54,17 +55,29 @@ AgentNode::AgentNode(rt::Bus& bus, rt::EventLoop& loop, AgentOptions options)
   }
   const rt::Channels& ch = options_.channels;
   subscriptions_.push_back(bus_.subscribe(ch.scan(options_.robot_id), [this](const std::string& c, const void* d,
-                                                                             std::size_t n) { on_scan(c, d, n); }));
+                                                                             std::size_t n) {
+    if (!stalled_) on_scan(c, d, n);
+  }));
   subscriptions_.push_back(bus_.subscribe(
-      ch.local_map_ack(), [this](const std::string& c, const void* d, std::size_t n) { on_local_map_ack(c, d, n); }));
+      ch.local_map_ack(), [this](const std::string& c, const void* d, std::size_t n) {
+        if (!stalled_) on_local_map_ack(c, d, n);
+      }));
   subscriptions_.push_back(bus_.subscribe(ch.corrected_frames(), [this](const std::string& c, const void* d,
-                                                                        std::size_t n) { on_corrected_frames(c, d, n); }));
+                                                                        std::size_t n) {
+    if (!stalled_) on_corrected_frames(c, d, n);
+  }));
   subscriptions_.push_back(bus_.subscribe(
-      ch.mission_end(), [this](const std::string& c, const void* d, std::size_t n) { on_mission_end(c, d, n); }));
+      ch.mission_end(), [this](const std::string& c, const void* d, std::size_t n) {
+        if (!stalled_) on_mission_end(c, d, n);
+      }));
   // Checked a few times per interval so a map is resent within ~1.25 intervals of its last send.
   const auto tick = std::max(std::chrono::milliseconds(5), options_.resend_interval / 4);
-  timers_.push_back(loop_.every(tick, [this] { resend_due(); }));
-  timers_.push_back(loop_.every(options_.status_interval, [this] { publish_status(); }));
+  timers_.push_back(loop_.every(tick, [this] {
+    if (!stalled_) resend_due();
+  }));
+  timers_.push_back(loop_.every(options_.status_interval, [this] {
+    if (!stalled_) publish_status();
+  }));
   // Restarted: what the server may never have received goes out at once.
   for (auto& [seq, map] : pending_) {
     ++counters_.map_resends;
@@ -232,6 +245,11 @@ void AgentNode::process(const rt::RobotScan& scan) {
   }
   if (shipped) transmit(*shipped, pending_.at(*shipped));
   send_ack(ack);
+  if (options_.test_stall_after_scan && scan.seq >= *options_.test_stall_after_scan) {
+    stalled_ = true;
+    std::cerr << "lmf-agent " << options_.robot_id << ": stalled after scan " << scan.seq
+              << " (--test-stall-after-scan): waiting to be killed\n";
+  }
 }
 
 void AgentNode::send_ack(const rt::ScanAck& ack) {

@@ -73,6 +73,10 @@ struct AgentOptions {
   // Folder of the persisted state (agent_state_file(state_dir, robot_id));
   // empty: nothing persisted. Created if missing.
   std::filesystem::path state_dir;
+  // Crash tests only: after acknowledging the scan with this seq the agent
+  // stops reacting to anything (scans, acks, resends, status), as a hung
+  // process, so a test can kill -9 it at a known point of a lockstep replay.
+  std::optional<std::int64_t> test_stall_after_scan;
   // Throws std::invalid_argument naming the bad field.
   void validate() const;
 };
@@ -123,6 +127,8 @@ class AgentNode {
   // x_WR from the latest corrected frame, if it can be related to the current map.
   std::optional<Pose2> global_pose() const;
   bool mission_ended() const { return mission_ended_; }
+  // AgentOptions::test_stall_after_scan was reached.
+  bool stalled() const { return stalled_; }
   // The mission ended and every shipped map was acknowledged.
   bool mission_done() const { return mission_ended_ && pending_.empty(); }
   // Every per-scan processing time so far (ms), in scan order.
@@ -179,6 +185,7 @@ class AgentNode {
   std::optional<AgentState::Origin> origin_;  // of the local map in progress
   bool any_gap_once_ = false;                 // restarted: the next scan may be any seq ahead
   std::filesystem::path state_file_;          // empty: not persisted
+  bool stalled_ = false;
 
   std::map<std::int64_t, PendingMap> pending_;        // shipped, not acked
   std::map<std::int64_t, Pose2> shipped_final_x_LR_;  // per shipped map, for chaining frames

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <exception>
 #include <iostream>
+#include <limits>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -29,6 +30,8 @@ int main(int argc, char** argv) {
   double drop = 0.0;
   std::uint64_t drop_seed = 1;
   std::string state_dir;
+  constexpr std::int64_t kUnset = std::numeric_limits<std::int64_t>::min();
+  std::int64_t stall_after_scan = kUnset;
   po::options_description description("Options");
   rt::add_common_options(description, common);
   description.add_options()
@@ -42,7 +45,10 @@ int main(int argc, char** argv) {
       ("state", po::value(&state_dir),
        "folder of the persisted state (agent<id>.state, created if missing): written at each new local map\n"
        "origin, ship and ack; a restart on the same folder resends the unacknowledged maps and continues\n"
-       "the chain of local maps (scans since the last ship are lost, bridged by odometry)");
+       "the chain of local maps (scans since the last ship are lost, bridged by odometry)")
+      ("test-stall-after-scan", po::value(&stall_after_scan),
+       "for crash tests: after acknowledging scan SEQ stop reacting to anything, as a hung process,\n"
+       "so a test can kill -9 the agent at a known point of a lockstep replay");
   rt::parse_options_or_exit(argc, argv, description, kProgram,
                             "Runs one robot's EKF local map: scans in, local maps out (resent until acknowledged),\n"
                             "scan acks, corrected frames in, status every 200 ms.");
@@ -56,6 +62,7 @@ int main(int argc, char** argv) {
     options.drop_local_maps = drop;
     options.drop_seed = drop_seed;
     options.state_dir = state_dir;
+    if (stall_after_scan != kUnset) options.test_stall_after_scan = stall_after_scan;
     options.validate();
   } catch (const std::exception& e) {
     rt::exit_with_error(kProgram, e.what(), 2);

@@ -410,6 +410,23 @@ TEST(AgentRestart, UntrustedStateStopsTheAgent) {
   EXPECT_THROW(AgentNode(rig.bus, rig.loop, unusable), AgentStateError);
 }
 
+// The crash tests' hook: after the given scan the agent is deaf, as if hung.
+TEST(AgentRestart, StallHookStopsReactingAfterTheGivenScan) {
+  AgentOptions options;
+  options.robot_id = 0;
+  options.test_stall_after_scan = 2;
+  Rig rig;
+  AgentNode agent(rig.bus, rig.loop, options);
+  for (std::int64_t seq = 0; seq < 5; ++seq) rig.send(seq);
+  rig.drain();
+  EXPECT_TRUE(agent.stalled());
+  ASSERT_EQ(rig.acks.size(), 3u);
+  EXPECT_EQ(rig.acks.back().seq, 2);
+  EXPECT_EQ(agent.counters().scans_processed, 3);
+  options.test_stall_after_scan = -1;
+  EXPECT_THROW(AgentNode(rig.bus, rig.loop, options), std::invalid_argument);
+}
+
 // ---- a mission with one agent killed and restarted --------------------------------------------
 
 TEST(AgentRestart, LockstepMissionCompletesWithNothingLost) {
