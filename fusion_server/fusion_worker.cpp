@@ -43,6 +43,11 @@ std::size_t FusionWorker::stop() {
   return discarded;
 }
 
+bool FusionWorker::has_room() const {
+  std::lock_guard lock(mutex_);
+  return !stopping_ && bounded_waiting_ < capacity_;
+}
+
 std::size_t FusionWorker::waiting() const {
   std::lock_guard lock(mutex_);
   return queue_.size();

@@ -46,6 +46,11 @@ class FusionWorker {
   // Idempotent (later calls return 0).
   std::size_t stop();
 
+  // try_push(task, kBounded) would take a task now. With one pushing thread
+  // (the server's loop) a true answer stays true until that thread pushes,
+  // unless stop() is called in between.
+  bool has_room() const;
+
   std::size_t capacity() const { return capacity_; }
   // Tasks waiting (not counting the running one).
   std::size_t waiting() const;

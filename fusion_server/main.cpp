@@ -5,6 +5,7 @@
 #include <csignal>
 #include <iostream>
 #include <optional>
+#include <sstream>
 #include <string>
 
 #include <boost/asio/signal_set.hpp>
@@ -30,6 +31,9 @@ int main(int argc, char** argv) {
   int frames_ms = static_cast<int>(options.frames_interval.count());
   int map_ms = static_cast<int>(options.map_interval.count());
   int write_s = 0;
+  std::string state_dir;
+  int snapshot_ms = static_cast<int>(options.snapshot_interval.count());
+  std::string state_test_pause;
 
   po::options_description description("Options");
   description.add_options()
@@ -49,7 +53,16 @@ int main(int argc, char** argv) {
       ("map-interval-ms", po::value<int>(&map_ms)->default_value(map_ms),
        "global_map_t period, ms (also sent after fusions, at most every 250 ms)")
       ("write-interval-s", po::value<int>(&write_s)->default_value(write_s),
-       "write the outputs every N s; 0: only on SIGUSR1 and at exit");
+       "write the outputs every N s; 0: only on SIGUSR1 and at exit")
+      ("state", po::value<std::string>(&state_dir),
+       "durable state directory: snapshot + journal of every accepted local map and sighting (fsync'ed before "
+       "it is acked); at start the snapshot is loaded and the journal replayed (default: no durable state)")
+      ("snapshot-interval-ms", po::value<int>(&snapshot_ms)->default_value(snapshot_ms),
+       "with --state: write a snapshot after a fusion once this long since the last one (and when idle); "
+       "0: after every fusion and sighting")
+      ("state-test-pause", po::value<std::string>(&state_test_pause),
+       "testing only, K,MS: in the K-th snapshot this process writes (1: the one at start), sleep MS ms "
+       "between syncing snapshot.tmp and renaming it (crash tests kill the server there)");
   lmf::runtime::add_common_options(description, common);
   lmf::runtime::parse_options_or_exit(
       argc, argv, description, kProgram,
@@ -68,6 +81,21 @@ int main(int argc, char** argv) {
     options.frames_interval = std::chrono::milliseconds(frames_ms);
     options.map_interval = std::chrono::milliseconds(map_ms);
     options.write_interval = std::chrono::seconds(write_s);
+    options.state_dir = state_dir;
+    if (snapshot_ms < 0) throw std::invalid_argument("--snapshot-interval-ms must be >= 0");
+    options.snapshot_interval = std::chrono::milliseconds(snapshot_ms);
+    if (!state_test_pause.empty()) {
+      int at = 0;
+      int ms = 0;
+      char comma = 0;
+      std::istringstream in(state_test_pause);
+      if (!(in >> at >> comma >> ms) || comma != ',' || !in.eof() || at < 1 || ms < 0) {
+        throw std::invalid_argument("--state-test-pause must be K,MS with K >= 1 and MS >= 0, got '" +
+                                    state_test_pause + "'");
+      }
+      options.state_test_pause_at = at;
+      options.state_test_pause = std::chrono::milliseconds(ms);
+    }
     options.validate();
   } catch (const std::exception& e) {
     lmf::runtime::exit_with_error(kProgram, e.what(), 2);

@@ -10,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "lmf/fusion/global_map_archive.hpp"
 #include "lmf/fusion/map_export.hpp"
 #include "lmf/mission/mission_report.hpp"
 #include "lmf/io/trajectory.hpp"
@@ -103,6 +104,10 @@ void ServerOptions::validate() const {
   if (map_interval.count() <= 0) throw std::invalid_argument("--map-interval-ms must be > 0");
   if (map_min_interval.count() < 0) throw std::invalid_argument("map_min_interval must be >= 0");
   if (write_interval.count() < 0) throw std::invalid_argument("--write-interval-s must be >= 0");
+  if (snapshot_interval.count() < 0) throw std::invalid_argument("--snapshot-interval-ms must be >= 0");
+  if (state_test_pause_at < 0 || state_test_pause.count() < 0) {
+    throw std::invalid_argument("--state-test-pause: snapshot number and milliseconds must be >= 0");
+  }
 }
 
 // What one worker task produced, handed to the loop thread.
@@ -120,10 +125,12 @@ ServerNode::ServerNode(runtime::Bus& bus, runtime::EventLoop& loop, runtime::Cha
                        ServerOptions options)
     : bus_(bus), loop_(loop), channels_(std::move(channels)), options_(std::move(options)),
       map_((options_.validate(), options_.global_map)) {
-  if (options_.first_robot) {
+  if (!options_.state_dir.empty()) {
+    recover_state();  // joins the first robot itself when the state is new
+  } else if (options_.first_robot) {
     record_fusions(map_.join_robot(*options_.first_robot, Pose2()), 0.0);  // L = W (DESIGN §5)
-    seqs_[*options_.first_robot];
   }
+  if (options_.first_robot) seqs_[*options_.first_robot];
   view_ = make_view();
 
   subscriptions_.push_back(bus_.subscribe(
@@ -137,6 +144,12 @@ ServerNode::ServerNode(runtime::Bus& bus, runtime::EventLoop& loop, runtime::Cha
   if (options_.write_interval.count() > 0) {
     timers_.push_back(loop_.every(std::chrono::duration_cast<std::chrono::milliseconds>(options_.write_interval),
                                   [this] { request_write(); }));
+  }
+  if (store_ && options_.snapshot_interval.count() > 0) {
+    // An idle server still snapshots what it applied (bounds the journal to replay).
+    timers_.push_back(loop_.every(options_.snapshot_interval, [this] {
+      if (!stopped_) worker_->try_push([this] { snapshot_now(); }, FusionWorker::Bound::kUnbounded);
+    }));
   }
   worker_ = std::make_unique<FusionWorker>(options_.queue_capacity);
 }
@@ -175,8 +188,22 @@ void ServerNode::on_local_map(const void* data, std::size_t size) {
     return;
   }
   const auto arrived = Clock::now();
-  const bool taken = worker_->try_push(
-      [this, snapshot = std::move(snapshot), arrived]() mutable { fuse_task(std::move(snapshot), arrived); });
+  const bool room = worker_->has_room();
+  std::int64_t lsn = 0;
+  if (room && store_) {
+    // On disk before the worker sees it (so before any ack); in FIFO order.
+    try {
+      lsn = store_->append(channels_.local_map(), data, size, wall_utime());
+    } catch (const StateError& e) {
+      ++stats_.journal_failures;
+      std::cerr << "lmf-server: " << where << " NOT taken (the agent will resend it): " << e.what() << '\n';
+      return;
+    }
+  }
+  const bool taken = room && worker_->try_push([this, snapshot = std::move(snapshot), arrived, lsn]() mutable {
+    fuse_task(std::move(snapshot), arrived);
+    after_task(lsn);
+  });
   if (!taken) {
     // Back-pressure: not acked, so the agent resends it (never dropped silently).
     ++stats_.deferred_queue_full;
@@ -216,8 +243,23 @@ void ServerNode::on_sighting(const void* data, std::size_t size) {
     return;
   }
   const auto arrived = Clock::now();
+  std::int64_t lsn = 0;
+  if (store_) {
+    try {
+      lsn = store_->append(channels_.sighting(), data, size, wall_utime());
+    } catch (const StateError& e) {
+      ++stats_.journal_failures;
+      std::cerr << "lmf-server: " << where << " NOT applied (not journaled): " << e.what() << '\n';
+      return;
+    }
+  }
   // Unbounded: nobody resends a sighting, and it is tiny (FusionWorker header).
-  worker_->try_push([this, s, arrived] { sighting_task(s, arrived); }, FusionWorker::Bound::kUnbounded);
+  worker_->try_push(
+      [this, s, arrived, lsn] {
+        sighting_task(s, arrived);
+        after_task(lsn);
+      },
+      FusionWorker::Bound::kUnbounded);
 }
 
 void ServerNode::on_outcome(Outcome& outcome) {
@@ -293,6 +335,127 @@ void ServerNode::sighting_task(const runtime::Sighting& sighting, Clock::time_po
   }
   outcome->view = make_view();
   post_outcome(std::move(outcome));
+}
+
+// ---- durable state (constructor, then worker thread) ---------------------------
+
+void ServerNode::recover_state() {
+  const auto started = Clock::now();
+  store_ = std::make_unique<StateStore>(
+      StateStoreOptions{options_.state_dir, options_.state_test_pause_at, options_.state_test_pause});
+  Recovery rec = store_->recover();
+  if (rec.state) {
+    ServerState& st = *rec.state;
+    if (!fusion::same_config(st.map.config(), options_.global_map)) {
+      throw StateError("the state in " + options_.state_dir.string() +
+                       " was made with another global_map configuration; start with the same --config, or use a "
+                       "new --state directory");
+    }
+    map_ = std::move(st.map);
+    book_ = std::move(st.book);
+    fusions_ = std::move(st.fusions);
+    sightings_ = std::move(st.sightings);
+    fusion_ms_sum_ = st.fusion_ms_sum;
+    last_covariance_ok_ = st.last_covariance_ok;
+    covariance_always_ok_ = st.covariance_always_ok;
+    last_min_pivot_ = st.last_min_pivot;
+    latest_utime_ = st.latest_utime;
+    applied_lsn_ = rec.snapshot_lsn;
+    recovery_.from = rec.snapshot_file;
+  } else {
+    if (options_.first_robot) record_fusions(map_.join_robot(*options_.first_robot, Pose2()), 0.0);  // L = W
+    recovery_.from = rec.fresh ? "new" : "journal";
+  }
+  recovery_.snapshot_lsn = rec.snapshot_lsn;
+  recovery_.problems = rec.problems;
+  // The loop side's bookkeeping: every local map in the book was fused or
+  // queued (acked), every recorded sighting was received.
+  for (const auto& [robot_id, maps] : book_.shipped()) {
+    for (const auto& entry : maps) seqs_[robot_id].applied.insert(entry.first);
+  }
+  for (const SightingRecord& r : sightings_) {
+    sightings_seen_.insert({r.sighting.utime, r.sighting.observer_id, r.sighting.observed_id});
+  }
+  for (const JournalRecord& r : rec.records) {
+    replay(r);
+    applied_lsn_ = r.lsn;
+  }
+  store_->start(rec, applied_lsn_, encode_state());
+  last_snapshot_ = Clock::now();
+  recovery_.lsn = applied_lsn_;
+  recovery_.fusions = static_cast<std::int64_t>(fusions_.size());
+  recovery_.ms = ms_since(started);
+
+  std::cerr << "lmf-server: state " << options_.state_dir << ": ";
+  if (recovery_.from == "new") {
+    std::cerr << "new\n";
+  } else {
+    std::cerr << "recovered from " << (rec.state ? recovery_.from + " (lsn " + std::to_string(rec.snapshot_lsn) + ")"
+                                                 : std::string("the journal alone"))
+              << " + " << rec.records.size() << " journal records (" << recovery_.replayed_local_maps
+              << " local maps, " << recovery_.replayed_sightings << " sightings): lsn " << recovery_.lsn << ", "
+              << recovery_.fusions << " fusions, " << map_.counts().segments << " segments, in " << recovery_.ms
+              << " ms\n";
+  }
+  for (const std::string& p : recovery_.problems) std::cerr << "lmf-server: state: PROBLEM: " << p << '\n';
+}
+
+void ServerNode::replay(const JournalRecord& record) {
+  const std::string at = "journal record lsn " + std::to_string(record.lsn);
+  if (record.channel == channels_.local_map()) {
+    auto decoded = runtime::decode<LocalMapSnapshot>(record.data.data(), record.data.size(), options_.limits);
+    if (!decoded) {
+      recovery_.problems.push_back(at + ": no longer decodes (" + decoded.rejection().describe() + "): skipped");
+      return;
+    }
+    const int robot_id = decoded.value().robot_id;
+    const std::int64_t seq = decoded.value().seq;
+    ++recovery_.replayed_local_maps;
+    fuse_task(std::move(decoded.value()), Clock::now());
+    // Applied now (its outcome, and the FUSED/QUEUED ack, follow on the loop).
+    if (map_.has_fused(robot_id, seq) || map_.is_queued(robot_id, seq)) seqs_[robot_id].applied.insert(seq);
+  } else if (record.channel == channels_.sighting()) {
+    auto decoded = runtime::decode<runtime::Sighting>(record.data.data(), record.data.size(), options_.limits);
+    if (!decoded) {
+      recovery_.problems.push_back(at + ": no longer decodes (" + decoded.rejection().describe() + "): skipped");
+      return;
+    }
+    const runtime::Sighting& s = decoded.value();
+    sightings_seen_.insert({s.utime, s.observer_id, s.observed_id});
+    ++recovery_.replayed_sightings;
+    sighting_task(s, Clock::now());
+  } else {
+    throw StateError(at + " is on channel '" + record.channel + "', not one of this server's (" +
+                     channels_.local_map() + ", " + channels_.sighting() + "): another --channel-prefix?");
+  }
+}
+
+std::string ServerNode::encode_state() const {
+  return encode_server_state(map_, book_, fusions_, sightings_, fusion_ms_sum_, last_covariance_ok_,
+                             covariance_always_ok_, last_min_pivot_, latest_utime_);
+}
+
+void ServerNode::after_task(std::int64_t lsn) {
+  if (!store_) return;
+  applied_lsn_ = std::max(applied_lsn_, lsn);
+  state_dirty_ = true;
+  if (options_.snapshot_interval.count() == 0 || Clock::now() - last_snapshot_ >= options_.snapshot_interval) {
+    snapshot_now();
+  }
+}
+
+void ServerNode::snapshot_now() {
+  if (!store_ || !state_dirty_) return;
+  const auto started = Clock::now();
+  const std::string payload = encode_state();
+  const double encode_ms = ms_since(started);
+  last_snapshot_ = Clock::now();
+  if (!store_->write_snapshot(applied_lsn_, payload)) return;  // reported; stays dirty, retried next time
+  state_dirty_ = false;
+  const SnapshotStats st = store_->snapshot_stats();
+  std::cerr << "lmf-server: state: snapshot " << st.written << " at lsn " << applied_lsn_ << ": " << fusions_.size()
+            << " fusions, " << map_.counts().segments << " segments, " << st.last_bytes << " bytes, encode "
+            << encode_ms << " ms, write " << st.last_ms << " ms\n";
 }
 
 void ServerNode::post_outcome(std::shared_ptr<Outcome> outcome) {
@@ -413,6 +576,25 @@ bool ServerNode::write_outputs(const LoopSnapshot& loop_side) const {
     json rejects = json::object();
     for (const auto& [name, count] : loop_side.rejects) rejects[name] = count;
     report["rejects"] = std::move(rejects);
+    if (store_) {
+      const SnapshotStats st = store_->snapshot_stats();
+      report["state"] = {{"dir", options_.state_dir.string()},
+                         {"recovered_from", recovery_.from},
+                         {"recovered_snapshot_lsn", recovery_.snapshot_lsn},
+                         {"replayed_local_maps", recovery_.replayed_local_maps},
+                         {"replayed_sightings", recovery_.replayed_sightings},
+                         {"recovered_lsn", recovery_.lsn},
+                         {"recovery_ms", recovery_.ms},
+                         {"problems", recovery_.problems},
+                         {"journal_records", store_->journal_records()},
+                         {"journal_failures", s.journal_failures},
+                         {"snapshots_written", st.written},
+                         {"snapshots_failed", st.failed},
+                         {"snapshot_last_bytes", st.last_bytes},
+                         {"snapshot_last_ms", st.last_ms},
+                         {"snapshot_max_ms", st.max_ms},
+                         {"snapshot_mean_ms", st.written > 0 ? st.total_ms / static_cast<double>(st.written) : 0.0}};
+    }
 
     const auto file = options_.out_dir / "report.json";
     std::ofstream out(file);
@@ -456,6 +638,7 @@ bool ServerNode::shutdown(bool write_outputs_now) {
     stats_.worker_errors = worker_->task_errors();
   }
   // The worker is joined: its state is ours now.
+  snapshot_now();
   if (!write_outputs_now) return true;
   return write_outputs(loop_snapshot());
 }

@@ -26,6 +26,18 @@
 // Publications: corrected_frames_t after each fusion and every frames_interval;
 // global_map_t after fusions (at most one per map_min_interval) and every
 // map_interval; server_status_t every status_interval.
+//
+// Durable state (state_dir set; fusion_server/state_store.hpp): every local
+// map and sighting that passes the checks above is appended to the journal
+// (fsync'ed) on the loop thread just before it enters the worker FIFO, so the
+// journal order is the fusion order and nothing is acked before it is on disk.
+// The worker writes a snapshot (a copy of the map, book and records encoded on
+// the worker thread, then written there) after a task once snapshot_interval
+// has passed since the last one (0: after every task), every snapshot_interval
+// when idle, and at shutdown. At construction the snapshot is loaded and the
+// journal after it replayed through fuse_task/sighting_task, the same code path
+// as live input; resent local maps that it already applied are then acked
+// DUPLICATE.
 #pragma once
 
 #include <array>
@@ -42,6 +54,7 @@
 #include <vector>
 
 #include "fusion_server/fusion_worker.hpp"
+#include "fusion_server/state_store.hpp"
 #include "lmf/fusion/global_map.hpp"
 #include "lmf/mission/trajectory_book.hpp"
 #include "runtime/bus.hpp"
@@ -67,6 +80,11 @@ struct ServerOptions {
   std::chrono::milliseconds map_min_interval{250};  // rate limit of global_map_t after fusions
   std::chrono::seconds write_interval{0};           // 0: only on request and at shutdown
   runtime::DecodeLimits limits;
+  // Durable state: empty = none. See the header comment and state_store.hpp.
+  std::filesystem::path state_dir;
+  std::chrono::milliseconds snapshot_interval{5000};  // 0: after every fusion / sighting
+  int state_test_pause_at = 0;                        // StateStoreOptions::test_pause_at
+  std::chrono::milliseconds state_test_pause{0};
 
   // Throws std::invalid_argument naming the bad field.
   void validate() const;
@@ -96,6 +114,19 @@ struct ServerStats {
   std::int64_t deferred_queue_full = 0;  // not acked because the worker queue was full
   std::int64_t discarded_at_stop = 0;    // waiting tasks never started (never acked)
   std::int64_t worker_errors = 0;
+  std::int64_t journal_failures = 0;     // not journaled (I/O error): not applied, not acked
+};
+
+// What the server found in its state directory at start.
+struct StateRecovery {
+  std::string from = "none";            // "new", "snapshot", "snapshot.prev", "journal"
+  std::int64_t snapshot_lsn = 0;
+  std::int64_t replayed_local_maps = 0;
+  std::int64_t replayed_sightings = 0;
+  std::int64_t lsn = 0;                 // the state after recovery
+  std::int64_t fusions = 0;             // fusions in the recovered state
+  double ms = 0.0;                      // load + replay + first snapshot
+  std::vector<std::string> problems;
 };
 
 class ServerNode {
@@ -131,6 +162,9 @@ class ServerNode {
   // The GlobalMap once shutdown() joined the worker (nullptr before): for
   // tests and tools that compare the final map.
   const fusion::GlobalMap* map_after_shutdown() const { return stopped_ ? &map_ : nullptr; }
+  // The durable state (nullptr without state_dir) and what recovery found.
+  const StateStore* state_store() const { return store_.get(); }
+  const StateRecovery& recovery() const { return recovery_; }
 
   // The message builders, public for tests.
   lmf::server_status_t make_status() const;
@@ -144,16 +178,6 @@ class ServerNode {
     ServerStats stats;
     std::vector<std::pair<std::string, std::int64_t>> rejects;
   };
-  // One fusion as recorded for report.json (worker side).
-  struct FusionRecord {
-    fusion::FusionReport report;
-    double queue_wait_ms = 0.0;  // from arrival to the start of the task that fused it
-  };
-  struct SightingRecord {
-    runtime::Sighting sighting;
-    std::string status;
-  };
-
   void on_local_map(const void* data, std::size_t size);
   void on_sighting(const void* data, std::size_t size);
   void on_outcome(Outcome& outcome);
@@ -163,6 +187,12 @@ class ServerNode {
   void fuse_task(LocalMapSnapshot snapshot, std::chrono::steady_clock::time_point arrived);
   void sighting_task(const runtime::Sighting& sighting, std::chrono::steady_clock::time_point arrived);
   void record_fusions(const std::vector<fusion::FusionReport>& reports, double queue_wait_ms);
+  // Durable state: load + replay (constructor), after each journaled task, snapshots.
+  void recover_state();
+  void replay(const JournalRecord& record);
+  void after_task(std::int64_t lsn);
+  void snapshot_now();
+  std::string encode_state() const;
   MapView make_view() const;
   bool write_outputs(const LoopSnapshot& loop_side) const;
 
@@ -188,6 +218,11 @@ class ServerNode {
   bool covariance_always_ok_ = true;
   std::optional<double> last_min_pivot_;
   std::int64_t latest_utime_ = 0;
+  std::unique_ptr<StateStore> store_;  // its append() is called from the loop thread
+  std::int64_t applied_lsn_ = 0;       // last journal record applied
+  bool state_dirty_ = false;           // applied something since the last snapshot
+  std::chrono::steady_clock::time_point last_snapshot_{};
+  StateRecovery recovery_;             // set in the constructor, read-only after
 
   // ---- loop side ----
   struct RobotSeqs {

@@ -26,11 +26,15 @@ class TrajectoryBook {
   std::map<int, std::vector<StampedPose>> final_trajectories(const fusion::GlobalMap& map) const;
   std::vector<StampedPose> final_trajectory(const fusion::GlobalMap& map, int robot_id) const;
 
- private:
+  // What was recorded, robot -> seq -> map (e.g. for the server's durable state:
+  // add() each back into an empty book to restore it).
   struct Shipped {
     Pose2 x_LR;
     std::vector<ScanPose> scan_poses;
   };
+  const std::map<int, std::map<int64_t, Shipped>>& shipped() const { return robots_; }
+
+ private:
   std::map<int, std::map<int64_t, Shipped>> robots_;  // robot -> seq -> map
 };
 

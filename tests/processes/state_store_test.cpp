@@ -1,0 +1,457 @@
+// The fusion server's durable state (fusion_server/state_store.hpp): round
+// trip, torn journal tails (good prefix used), corrupt records and snapshots
+// (fallback to snapshot.prev, damaged files set aside, loud error when nothing
+// is valid), the directory lock, LCM-log compatibility of the journal; and a
+// ServerNode restarted on a copy of a running server's state directory (what
+// kill -9 leaves) continues bit-identically and acks resends DUPLICATE.
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <sstream>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <lcm/lcm-cpp.hpp>
+
+#include "fusion_server/server_node.hpp"
+#include "fusion_server/state_store.hpp"
+#include "lmf/fusion/global_map_archive.hpp"
+#include "runtime/bus.hpp"
+#include "runtime/channels.hpp"
+#include "runtime/convert.hpp"
+#include "runtime/event_loop.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace rt = lmf::runtime;
+using namespace std::chrono_literals;
+using lmf::LocalMapSnapshot;
+using lmf::Pose2;
+using lmf::server::JournalRecord;
+using lmf::server::Recovery;
+using lmf::server::StateError;
+using lmf::server::StateStore;
+using lmf::server::StateStoreOptions;
+using Status = rt::LocalMapAck::Status;
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir = fs::path(::testing::TempDir()) / ("lmf_state_" + name);
+  fs::remove_all(dir);
+  return dir;
+}
+
+// Local map `seq` of a robot moving 1 m along x per map in a 10 x 6 m room.
+LocalMapSnapshot make_map(int robot_id, std::int64_t seq, const Pose2& x_WL0 = Pose2()) {
+  const double pi = 3.14159265358979323846;
+  const std::vector<std::pair<Pose2, double>> walls = {{Pose2(4.0, -3.0, 0.0), 10.0},
+                                                       {Pose2(9.0, 0.0, pi / 2), 6.0},
+                                                       {Pose2(4.0, 3.0, pi), 10.0},
+                                                       {Pose2(-1.0, 0.0, -pi / 2), 6.0},
+                                                       {Pose2(2.0, -1.5, pi / 2), 1.0}};
+  const Pose2 step(1.0, 0.02 * static_cast<double>(seq % 3), 0.01);
+  Pose2 x_WL = x_WL0;
+  for (std::int64_t k = 0; k < seq; ++k) x_WL = lmf::compose(x_WL, step);
+  LocalMapSnapshot s;
+  s.robot_id = robot_id;
+  s.seq = seq;
+  s.first_utime = 1'000'000 + seq * 1'000'000;
+  s.last_utime = s.first_utime + 800'000;
+  s.x_LR = step;
+  // Slightly wrong estimates (so updates really move the map).
+  for (std::size_t i = 0; i < walls.size(); ++i) {
+    const double e = 0.01 * std::sin(static_cast<double>(seq * 7 + static_cast<std::int64_t>(i)));
+    s.segments.push_back({lmf::compose(lmf::between(x_WL, walls[i].first), Pose2(0.0, e, 0.5 * e)), walls[i].second});
+  }
+  const auto n = static_cast<Eigen::Index>(3 + 2 * walls.size());
+  s.covariance = Eigen::MatrixXd::Zero(n, n);
+  s.covariance.diagonal().head(3) << 1e-3, 1e-3, 1e-4;
+  for (Eigen::Index i = 3; i < n; i += 2) {
+    s.covariance(i, i) = 1e-4;
+    s.covariance(i + 1, i + 1) = 1e-5;
+    s.covariance(i + 1, 2) = s.covariance(2, i + 1) = 0.5e-5;
+  }
+  s.scan_poses = {{s.first_utime, Pose2()}, {s.last_utime, step}};
+  return s;
+}
+
+std::vector<std::uint8_t> map_bytes(const LocalMapSnapshot& s) {
+  auto msg = rt::to_message(s);
+  EXPECT_TRUE(msg.ok());
+  return rt::encode_message(msg.value());
+}
+
+rt::Sighting make_sighting(int observer, int observed, std::int64_t utime) {
+  rt::Sighting s;
+  s.utime = utime;
+  s.observer_id = observer;
+  s.observed_id = observed;
+  s.x_AB = Pose2(2.0, 0.5, 0.1);
+  s.covariance = Eigen::Vector3d(0.0025, 0.0025, 0.0004).asDiagonal();
+  s.x_LA = Pose2(0.2, 0.0, 0.0);
+  s.cov_LA = Eigen::Matrix3d::Identity() * 1e-4;
+  return s;
+}
+
+// A server-state payload whose map has `fused` local maps of robot 0.
+std::string payload_with(int fused) {
+  lmf::fusion::GlobalMap map;
+  lmf::mission::TrajectoryBook book;
+  map.join_robot(0, Pose2());
+  for (int seq = 0; seq < fused; ++seq) {
+    map.fuse(make_map(0, seq));
+    book.add(make_map(0, seq));
+  }
+  return lmf::server::encode_server_state(map, book, {}, {}, 0.0, true, true, std::nullopt, 0);
+}
+
+int fused_in(const Recovery& r) {
+  const auto robot = r.state->book.shipped().find(0);
+  return robot == r.state->book.shipped().end() ? 0 : static_cast<int>(robot->second.size());
+}
+
+void append_maps(StateStore& store, std::int64_t from_seq, int count) {
+  for (int i = 0; i < count; ++i) {
+    const auto bytes = map_bytes(make_map(0, from_seq + i));
+    store.append("LMF_LOCAL_MAP", bytes.data(), bytes.size(), 42);
+  }
+}
+
+std::vector<std::int64_t> lsns(const Recovery& r) {
+  std::vector<std::int64_t> out;
+  for (const JournalRecord& j : r.records) out.push_back(j.lsn);
+  return out;
+}
+
+std::vector<fs::path> journals(const fs::path& dir) {
+  std::vector<fs::path> out;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (e.path().extension() == ".lcmlog") out.push_back(e.path());
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::string read_all(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+void write_all(const fs::path& p, const std::string& bytes) {
+  std::ofstream out(p, std::ios::binary | std::ios::trunc);
+  out << bytes;
+}
+
+bool mentions(const std::vector<std::string>& problems, const std::string& what) {
+  for (const std::string& p : problems) {
+    if (p.find(what) != std::string::npos) return true;
+  }
+  return false;
+}
+
+// A state directory with snapshot (lsn 2: maps 0, 1), snapshot.prev (lsn 0)
+// and journal records 1..5 (maps 0..4): records 3..5 are after the snapshot.
+fs::path standard_dir(const std::string& name) {
+  const fs::path dir = fresh_dir(name);
+  StateStore store(StateStoreOptions{dir});
+  const Recovery rec = store.recover();
+  EXPECT_TRUE(rec.fresh);
+  store.start(rec, 0, payload_with(0));
+  append_maps(store, 0, 2);
+  EXPECT_TRUE(store.write_snapshot(2, payload_with(2)));
+  append_maps(store, 2, 3);
+  EXPECT_EQ(store.last_appended_lsn(), 5);
+  return dir;
+}
+
+TEST(StateStoreTest, RoundTripSnapshotPlusJournal) {
+  const fs::path dir = standard_dir("round_trip");
+  EXPECT_TRUE(fs::exists(dir / "snapshot"));
+  EXPECT_TRUE(fs::exists(dir / "snapshot.prev"));
+  StateStore store(StateStoreOptions{dir});
+  Recovery rec = store.recover();
+  EXPECT_FALSE(rec.fresh);
+  ASSERT_TRUE(rec.state.has_value());
+  EXPECT_EQ(rec.snapshot_file, "snapshot");
+  EXPECT_EQ(rec.snapshot_lsn, 2);
+  EXPECT_EQ(fused_in(rec), 2);
+  EXPECT_EQ(lsns(rec), (std::vector<std::int64_t>{3, 4, 5}));
+  EXPECT_TRUE(rec.problems.empty());
+  // The records are the messages as given, on their channel.
+  const auto expected = map_bytes(make_map(0, 2));
+  EXPECT_EQ(rec.records[0].channel, "LMF_LOCAL_MAP");
+  EXPECT_EQ(rec.records[0].utime, 42);
+  EXPECT_EQ(rec.records[0].data, std::string(expected.begin(), expected.end()));
+  // Carry on: the journal continues at lsn 6 and old files are pruned.
+  store.start(rec, 5, payload_with(5));
+  append_maps(store, 5, 1);
+  EXPECT_EQ(store.last_appended_lsn(), 6);
+  EXPECT_LE(journals(dir).size(), 3u);
+}
+
+TEST(StateStoreTest, TheJournalIsAnLcmEventLog) {
+  const fs::path dir = standard_dir("lcm_log");
+  const std::vector<fs::path> files = journals(dir);
+  ASSERT_FALSE(files.empty());
+  std::int64_t events = 0;
+  for (const fs::path& f : files) {
+    lcm::LogFile log(f.string(), "r");
+    ASSERT_TRUE(log.good());
+    while (const lcm::LogEvent* e = log.readNextEvent()) {
+      EXPECT_EQ(e->channel, "LMF_LOCAL_MAP");
+      EXPECT_GT(e->eventnum, 0);
+      lmf::local_map_t msg;
+      EXPECT_GT(msg.decode(e->data, 0, e->datalen), 0);  // the message, then the 4-byte CRC
+      ++events;
+    }
+  }
+  EXPECT_GE(events, 3);
+}
+
+TEST(StateStoreTest, TornJournalTailIsCutAndTheGoodPrefixUsed) {
+  const fs::path dir = standard_dir("torn");
+  const fs::path last = journals(dir).back();
+  const std::string bytes = read_all(last);
+  write_all(last, bytes.substr(0, bytes.size() - 10));  // the last record (lsn 5) cut by a crash
+  {
+    StateStore store(StateStoreOptions{dir});
+    Recovery rec = store.recover();
+    EXPECT_EQ(rec.snapshot_lsn, 2);
+    EXPECT_EQ(lsns(rec), (std::vector<std::int64_t>{3, 4}));
+    ASSERT_EQ(rec.problems.size(), 1u);
+    EXPECT_TRUE(mentions(rec.problems, "torn tail")) << rec.problems[0];
+    store.start(rec, 4, payload_with(4));
+    EXPECT_TRUE(fs::exists(dir / "damaged"));
+    append_maps(store, 4, 1);  // the agent resends map 4 (never acked): lsn 5 again
+    EXPECT_EQ(store.last_appended_lsn(), 5);
+  }
+  StateStore store(StateStoreOptions{dir});
+  Recovery rec = store.recover();
+  EXPECT_TRUE(rec.problems.empty()) << rec.problems.front();
+  EXPECT_EQ(rec.snapshot_lsn, 4);
+  EXPECT_EQ(lsns(rec), (std::vector<std::int64_t>{5}));
+}
+
+TEST(StateStoreTest, CorruptRecordStopsTheReplayAndIsSetAside) {
+  const fs::path dir = standard_dir("corrupt_record");
+  const fs::path last = journals(dir).back();
+  std::string bytes = read_all(last);
+  // Three records of equal size (maps 2, 3, 4): damage the middle one's data.
+  const std::size_t record = bytes.size() / 3;
+  bytes[record + record / 2] = static_cast<char>(bytes[record + record / 2] ^ 0x40);
+  write_all(last, bytes);
+  StateStore store(StateStoreOptions{dir});
+  Recovery rec = store.recover();
+  EXPECT_EQ(lsns(rec), (std::vector<std::int64_t>{3}));
+  EXPECT_TRUE(mentions(rec.problems, "DAMAGED")) << (rec.problems.empty() ? "" : rec.problems[0]);
+  EXPECT_TRUE(mentions(rec.problems, "checksum mismatch"));
+  store.start(rec, 3, payload_with(3));
+  EXPECT_EQ(fs::file_size(last), record);  // the good prefix stays
+  bool tail_kept = false;
+  for (const auto& e : fs::directory_iterator(dir / "damaged")) {
+    tail_kept = tail_kept || fs::file_size(e.path()) == 2 * record;
+  }
+  EXPECT_TRUE(tail_kept);
+  append_maps(store, 3, 1);
+  EXPECT_EQ(store.last_appended_lsn(), 4);
+}
+
+TEST(StateStoreTest, CorruptSnapshotFallsBackToThePreviousOne) {
+  const fs::path dir = standard_dir("corrupt_snapshot");
+  std::string bytes = read_all(dir / "snapshot");
+  bytes[bytes.size() / 2] = static_cast<char>(bytes[bytes.size() / 2] ^ 1);
+  write_all(dir / "snapshot", bytes);
+  {
+    StateStore store(StateStoreOptions{dir});
+    Recovery rec = store.recover();
+    ASSERT_TRUE(rec.state.has_value());
+    EXPECT_EQ(rec.snapshot_file, "snapshot.prev");
+    EXPECT_EQ(rec.snapshot_lsn, 0);
+    EXPECT_EQ(fused_in(rec), 0);
+    EXPECT_EQ(lsns(rec), (std::vector<std::int64_t>{1, 2, 3, 4, 5}));  // its journal was kept
+    EXPECT_TRUE(mentions(rec.problems, "snapshot is unusable"));
+    EXPECT_TRUE(mentions(rec.problems, "checksum mismatch"));
+    store.start(rec, 5, payload_with(5));
+  }
+  // The corrupt file went to damaged/, not to snapshot.prev.
+  bool kept = false;
+  for (const auto& e : fs::directory_iterator(dir / "damaged")) {
+    kept = kept || e.path().filename().string().rfind("snapshot.", 0) == 0;
+  }
+  EXPECT_TRUE(kept);
+  StateStore store(StateStoreOptions{dir});
+  Recovery rec = store.recover();
+  EXPECT_TRUE(rec.problems.empty());
+  EXPECT_EQ(rec.snapshot_file, "snapshot");
+  EXPECT_EQ(rec.snapshot_lsn, 5);
+  EXPECT_EQ(fused_in(rec), 5);
+}
+
+TEST(StateStoreTest, NoValidSnapshotIsALoudErrorNotAnEmptyMap) {
+  const fs::path dir = standard_dir("all_corrupt");
+  for (const char* name : {"snapshot", "snapshot.prev"}) {
+    const std::string bytes = read_all(dir / name);
+    write_all(dir / name, bytes.substr(0, bytes.size() - 1));
+  }
+  StateStore store(StateStoreOptions{dir});
+  try {
+    store.recover();
+    FAIL() << "recovered from corrupt snapshots";
+  } catch (const StateError& e) {
+    EXPECT_NE(std::string(e.what()).find("no valid snapshot"), std::string::npos) << e.what();
+  }
+}
+
+TEST(StateStoreTest, ADirectoryIsUsedByOneServerAtATime) {
+  const fs::path dir = fresh_dir("lock");
+  StateStore first(StateStoreOptions{dir});
+  EXPECT_THROW(StateStore second(StateStoreOptions{dir}), StateError);
+}
+
+TEST(StateStoreTest, ServerStatePayloadRoundTrips) {
+  lmf::fusion::GlobalMap map;
+  lmf::mission::TrajectoryBook book;
+  map.join_robot(0, Pose2());
+  std::vector<lmf::server::FusionRecord> fusions;
+  for (int seq = 0; seq < 3; ++seq) {
+    for (const auto& r : map.fuse(make_map(0, seq))) fusions.push_back({r, 1.5 * seq});
+    book.add(make_map(0, seq));
+  }
+  std::vector<lmf::server::SightingRecord> sightings = {{make_sighting(0, 1, 7), "pending"}};
+  const std::string bytes =
+      lmf::server::encode_server_state(map, book, fusions, sightings, 12.5, false, true, 0.25, 99);
+  lmf::server::ServerState s = lmf::server::decode_server_state(bytes);
+  EXPECT_EQ(lmf::server::encode_server_state(s.map, s.book, s.fusions, s.sightings, s.fusion_ms_sum,
+                                             s.last_covariance_ok, s.covariance_always_ok, s.last_min_pivot,
+                                             s.latest_utime),
+            bytes);
+  EXPECT_EQ(s.fusions.size(), 3u);
+  EXPECT_EQ(s.sightings[0].status, "pending");
+  EXPECT_EQ(s.latest_utime, 99);
+  EXPECT_THROW(lmf::server::decode_server_state(bytes.substr(0, bytes.size() - 3)), lmf::fusion::ArchiveError);
+}
+
+// ---- the server node on a state directory ------------------------------------
+
+class ServerStateTest : public ::testing::Test {
+ protected:
+  ServerStateTest() : bus_("memq://"), loop_(bus_, no_signals()) {
+    bus_.subscribe_message<lmf::local_map_ack_t>(
+        channels_.local_map_ack(), [this](const std::string&, const lmf::local_map_ack_t& ack) {
+          acks_.emplace_back(ack.robot_id, ack.seq, static_cast<Status>(ack.status));
+        });
+  }
+  static rt::EventLoopOptions no_signals() {
+    rt::EventLoopOptions o;
+    o.handle_signals = false;
+    return o;
+  }
+  lmf::server::ServerOptions options(const fs::path& state, const std::string& name) const {
+    lmf::server::ServerOptions o;
+    o.out_dir = fresh_dir(name + "_out");
+    o.max_robots = 4;
+    o.state_dir = state;
+    o.snapshot_interval = 3600s;  // only at start and stop: everything else stays in the journal
+    return o;
+  }
+  bool run_until(const std::function<bool()>& done, std::chrono::milliseconds timeout = 5000ms) {
+    const auto end = std::chrono::steady_clock::now() + timeout;
+    while (!done()) {
+      if (std::chrono::steady_clock::now() > end) return false;
+      loop_.run_for(5ms);
+    }
+    return true;
+  }
+  void settle(lmf::server::ServerNode& node) {
+    ASSERT_TRUE(run_until([&] { return !node.worker_busy(); }));
+    loop_.run_for(20ms);
+  }
+  int count_acks(int robot, std::int64_t seq, Status status) const {
+    int n = 0;
+    for (const auto& [r, s, st] : acks_) n += (r == robot && s == seq && st == status) ? 1 : 0;
+    return n;
+  }
+  void publish_map(int robot, std::int64_t seq, const Pose2& x_WL0 = Pose2()) {
+    auto msg = rt::to_message(make_map(robot, seq, x_WL0));
+    bus_.publish(channels_.local_map(), msg.value());
+  }
+  void publish_sighting(const rt::Sighting& s) { bus_.publish(channels_.sighting(), rt::to_message(s).value()); }
+
+  static std::string archive(const lmf::fusion::GlobalMap& map) {
+    std::ostringstream out;
+    lmf::fusion::write_archive(map, out);
+    return out.str();
+  }
+
+  rt::Channels channels_;
+  rt::Bus bus_;
+  rt::EventLoop loop_;
+  std::vector<std::tuple<int, std::int64_t, Status>> acks_;
+};
+
+TEST_F(ServerStateTest, ARestartedServerContinuesBitIdentically) {
+  const fs::path state = fresh_dir("server_live");
+  const fs::path crashed = fresh_dir("server_crashed");
+  const Pose2 x_WL1(2.0, 0.5, 0.1);
+  std::string final_live;
+  {
+    lmf::server::ServerNode live(bus_, loop_, channels_, options(state, "live"));
+    EXPECT_EQ(live.recovery().from, "new");
+    for (int seq = 0; seq < 3; ++seq) publish_map(0, seq);
+    publish_map(1, 0, x_WL1);  // queued: robot 1 has not joined
+    ASSERT_TRUE(run_until([&] { return live.stats().acks_fused == 3 && live.stats().acks_queued == 1; }));
+    settle(live);
+    // What kill -9 leaves now: the start snapshot and a journal of 4 records.
+    fs::copy(state, crashed, fs::copy_options::recursive);
+    fs::remove(crashed / "lock");
+    publish_sighting(make_sighting(0, 1, 2'500'000));
+    for (int seq = 3; seq < 5; ++seq) publish_map(0, seq);
+    publish_map(1, 1, x_WL1);
+    ASSERT_TRUE(run_until([&] { return live.stats().acks_fused == 7; }));
+    settle(live);
+    live.shutdown(false);
+    final_live = archive(*live.map_after_shutdown());
+  }
+  acks_.clear();
+  lmf::server::ServerNode restarted(bus_, loop_, channels_, options(crashed, "restarted"));
+  EXPECT_EQ(restarted.recovery().from, "snapshot");
+  EXPECT_EQ(restarted.recovery().replayed_local_maps, 4);
+  EXPECT_TRUE(restarted.recovery().problems.empty());
+  // The agents resend what they had not seen acked; what the journal held is a duplicate.
+  publish_map(0, 2);
+  ASSERT_TRUE(run_until([&] { return count_acks(0, 2, Status::kDuplicate) == 1; }));
+  publish_map(1, 0, x_WL1);
+  ASSERT_TRUE(run_until([&] { return count_acks(1, 0, Status::kDuplicate) == 1; }));
+  publish_sighting(make_sighting(0, 1, 2'500'000));
+  for (int seq = 3; seq < 5; ++seq) publish_map(0, seq);
+  publish_map(1, 1, x_WL1);
+  ASSERT_TRUE(run_until([&] { return count_acks(0, 4, Status::kFused) == 1 && count_acks(1, 1, Status::kFused) == 1; }));
+  settle(restarted);
+  restarted.shutdown(false);
+  EXPECT_EQ(restarted.map_after_shutdown()->counts().robots_joined, 2);
+  EXPECT_EQ(archive(*restarted.map_after_shutdown()), final_live);
+}
+
+TEST_F(ServerStateTest, AStateMadeWithAnotherConfigIsRefused) {
+  const fs::path state = fresh_dir("server_config");
+  {
+    lmf::server::ServerNode node(bus_, loop_, channels_, options(state, "config_a"));
+    publish_map(0, 0);
+    ASSERT_TRUE(run_until([&] { return node.stats().acks_fused == 1; }));
+    settle(node);
+  }
+  lmf::server::ServerOptions other = options(state, "config_b");
+  other.global_map.gate_sigmas = 3.0;
+  EXPECT_THROW({ lmf::server::ServerNode refused(bus_, loop_, channels_, other); }, StateError);
+  // The same config recovers it (the refused attempt changed nothing).
+  lmf::server::ServerNode node(bus_, loop_, channels_, options(state, "config_c"));
+  EXPECT_EQ(node.view().fusion_count, 1);
+}
+
+}  // namespace
