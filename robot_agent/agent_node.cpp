@@ -110,7 +110,8 @@ void AgentNode::restore(const AgentState& state) {
   std::cerr << "lmf-agent " << options_.robot_id << ": resumed from " << state_file_.string() << ": local map "
             << local_map_.seq()
             << (origin_ ? " from its origin at scan " + to_string(origin_->scan_seq) : std::string(" (no scan yet)"))
-            << ", " << pending_.size() << " unacknowledged local map(s) to resend"
+            << ", " << counters_.maps_shipped << " local map(s) shipped, " << counters_.maps_acknowledged
+            << " acknowledged, " << pending_.size() << " unacknowledged to resend"
             << (mission_ended_ ? ", mission ended" : "") << "\n";
 }
 
