@@ -441,7 +441,6 @@ TEST(AgentRestart, LockstepMissionCompletesWithNothingLost) {
   rt::Bus bus("memq://");
   rt::EventLoop loop(bus, rt::EventLoopOptions{false});
   lmf::testing::FakeServer server(bus, config.global_map, rt::Channels());
-  server.ignore_first_transmissions(1);  // every map waits one resend: some are unacked at the kill
   lmf::mission::TrajectoryBook book;     // what the server received, for the final trajectories
   bus.subscribe(rt::Channels().local_map(), [&](const std::string&, const void* d, std::size_t n) {
     auto map = rt::decode<lmf::LocalMapSnapshot>(d, n);
@@ -464,9 +463,20 @@ TEST(AgentRestart, LockstepMissionCompletesWithNothingLost) {
     options.state_dir = dir.path() / "state";
     return options;
   };
+  // The victim's first life, deterministic: it goes deaf (as hung) after 60 %
+  // of its scans, and its map transmissions are lost with a seeded 50 % and no
+  // resend is due (seed 3: the first gets through, the second is dropped), so
+  // it dies mid-map with a map acknowledged and one the server never received.
+  const auto& victim_scans = inputs.robots.at(kVictim).scans;
+  AgentOptions first_life = agent_options(kVictim);
+  first_life.test_stall_after_scan = static_cast<std::int64_t>(victim_scans.size() * 3 / 5);
+  first_life.drop_local_maps = 0.5;
+  first_life.drop_seed = 3;
+  first_life.resend_interval = 600s;
   std::map<int, std::unique_ptr<AgentNode>> agents;
   for (const auto& robot : inputs.robots) {
-    agents[robot.robot_id] = std::make_unique<AgentNode>(bus, loop, agent_options(robot.robot_id));
+    agents[robot.robot_id] = std::make_unique<AgentNode>(
+        bus, loop, robot.robot_id == kVictim ? first_life : agent_options(robot.robot_id));
   }
   lmf::log_player::PlayerOptions player_options;
   player_options.lockstep = true;
@@ -477,12 +487,9 @@ TEST(AgentRestart, LockstepMissionCompletesWithNothingLost) {
   lmf::log_player::PlayerNode player(bus, loop, inputs, player_options);
   player.start();
 
-  // Kill the victim mid-map with a shipped map not yet acknowledged.
-  const auto mid_mission = [&] {
-    const AgentNode& a = *agents.at(kVictim);
-    return a.counters().maps_shipped >= 2 && !a.unacknowledged_maps().empty() && a.local_map().span_m() > 1.0;
-  };
-  ASSERT_TRUE(run_until(loop, mid_mission, 60s)) << player.summary();
+  ASSERT_TRUE(run_until(loop, [&] { return agents.at(kVictim)->stalled(); }, 60s)) << player.summary();
+  EXPECT_GT(agents.at(kVictim)->local_map().span_m(), 0.5) << "the kill is meant to land mid-map";
+  EXPECT_GE(agents.at(kVictim)->counters().maps_acknowledged, 1);
   const std::int64_t shipped_at_kill = agents.at(kVictim)->counters().maps_shipped;
   const std::int64_t scans_at_kill = agents.at(kVictim)->next_scan_seq();
   const std::vector<std::int64_t> unacked_at_kill = agents.at(kVictim)->unacknowledged_maps();
