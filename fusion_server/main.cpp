@@ -101,7 +101,7 @@ int main(int argc, char** argv) {
     lmf::runtime::exit_with_error(kProgram, e.what(), 2);
   }
 
-  lmf::runtime::Bus bus(common.lcm_url);
+  lmf::runtime::Bus bus(common.lcm_url, lmf::runtime::auth_config_or_exit(common, "server", kProgram));
   if (!bus.good()) lmf::runtime::exit_with_error(kProgram, "cannot open LCM at '" + bus.url() + "'");
   lmf::runtime::EventLoop loop(bus);
   std::optional<lmf::server::ServerNode> node;

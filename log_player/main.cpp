@@ -88,7 +88,7 @@ int main(int argc, char** argv) {
     rt::exit_with_error(kProgram, e.what(), 2);
   }
 
-  rt::Bus bus(common.lcm_url);
+  rt::Bus bus(common.lcm_url, rt::auth_config_or_exit(common, "player", kProgram));
   if (!bus.good()) rt::exit_with_error(kProgram, "cannot open LCM at '" + bus.url() + "'");
   rt::EventLoop loop(bus);
   options.on_finished = [&loop] { loop.stop(); };

@@ -55,7 +55,7 @@ int main(int argc, char** argv) {
       return 0;
     }
 
-    lmf::runtime::Bus bus(common.lcm_url);
+    lmf::runtime::Bus bus(common.lcm_url, lmf::runtime::auth_config_or_exit(common, "monitor", kProgram));
     if (!bus.good()) lmf::runtime::exit_with_error(kProgram, "cannot open LCM at '" + bus.url() + "'");
     lmf::runtime::EventLoop loop(bus);
     lmf::monitor::MonitorNode node(bus, loop, channels, options, std::cout);

@@ -6,6 +6,7 @@
 
 #include <lcm/lcm-cpp.hpp>
 
+#include "runtime/auth.hpp"
 #include "runtime/convert.hpp"
 
 namespace lmf::monitor {
@@ -134,7 +135,10 @@ std::int64_t MonitorNode::replay_log(const std::filesystem::path& file) {
       const std::int64_t skipped = (event->timestamp - *next_refresh) / period_us;
       *next_refresh += (skipped + 1) * period_us;
     }
-    handle(event->channel, event->data, static_cast<std::size_t>(event->datalen), event->timestamp);
+    // A capture of a system running with --keys holds signed messages: read
+    // their LCM part (unverified: a capture file is trusted as a whole).
+    const std::size_t size = runtime::auth::unverified_payload_size(event->data, static_cast<std::size_t>(event->datalen));
+    handle(event->channel, event->data, size, event->timestamp);
   }
   refresh(last_time);
   return events;

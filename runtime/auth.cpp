@@ -231,6 +231,35 @@ Key random_key() {
   return key;
 }
 
+std::map<std::string, KeyRing> make_system_keys(const std::vector<int>& robot_ids) {
+  std::vector<std::string> robots;
+  for (const int id : robot_ids) robots.push_back(robot_principal(id));
+  std::map<std::string, Key> key;
+  for (const std::string& principal : {std::string("server"), std::string("player"), std::string("monitor")}) {
+    key[principal] = random_key();
+  }
+  for (const std::string& robot : robots) {
+    if (key.count(robot) != 0) throw std::invalid_argument("robot id of '" + robot + "' given twice");
+    key[robot] = random_key();
+  }
+  std::map<std::string, KeyRing> files;
+  const auto file = [&](const std::string& owner, std::vector<std::string> readers_of) {
+    KeyRing& ring = files[owner];
+    ring.add(owner, key[owner]);
+    for (const std::string& principal : readers_of) ring.add(principal, key[principal]);
+  };
+  std::vector<std::string> player_and_robots = robots;
+  player_and_robots.insert(player_and_robots.begin(), "player");
+  file("server", player_and_robots);
+  file("player", robots);
+  std::vector<std::string> everyone = player_and_robots;
+  everyone.insert(everyone.begin(), "server");
+  file("monitor", everyone);
+  for (const std::string& robot : robots) file(robot, {"server", "player"});
+  for (auto& entry : key) OPENSSL_cleanse(entry.second.data(), entry.second.size());
+  return files;
+}
+
 std::string to_hex(std::span<const std::uint8_t> bytes) {
   static constexpr char kDigits[] = "0123456789abcdef";
   std::string hex;

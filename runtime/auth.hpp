@@ -129,6 +129,17 @@ void write_keys_file(const std::filesystem::path& path, const KeyRing& keys, std
 
 // 32 bytes from OpenSSL's CSPRNG; throws std::runtime_error if it fails.
 Key random_key();
+
+// The keys files of one system (what lmf-keygen writes), keyed by the
+// process's principal: a fresh random key per principal, and in each file only
+// the keys that process needs, its own and those of the senders it reads:
+//   server     server, player, every robot            (local maps, sightings)
+//   player     player, every robot                    (scan acks)
+//   monitor    monitor, server, player, every robot   (it reads every channel)
+//   robot<N>   robot<N>, server, player               (acks, frames, scans, mission end)
+// so no robot holds another robot's key. Throws std::invalid_argument for a
+// negative or repeated robot id.
+std::map<std::string, KeyRing> make_system_keys(const std::vector<int>& robot_ids);
 std::string to_hex(std::span<const std::uint8_t> bytes);
 std::optional<Key> key_from_hex(std::string_view hex);  // exactly 64 hex digits (either case)
 
