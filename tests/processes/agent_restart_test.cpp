@@ -410,6 +410,35 @@ TEST(AgentRestart, UntrustedStateStopsTheAgent) {
   EXPECT_THROW(AgentNode(rig.bus, rig.loop, unusable), AgentStateError);
 }
 
+// Killed after the mission end with the last map unacknowledged: the restarted
+// agent knows the mission ended, resends that map and is done once it is acked.
+TEST(AgentRestart, AfterTheMissionEndTheLastMapIsStillDelivered) {
+  TempDir state_dir("lmf-agent-restart-end");
+  AgentOptions options;
+  options.robot_id = 0;
+  options.resend_interval = 10s;
+  options.state_dir = state_dir.path();
+  Rig rig;
+  auto agent = std::make_unique<AgentNode>(rig.bus, rig.loop, options);
+  for (std::int64_t seq = 0; seq < 10; ++seq) rig.send(seq);
+  rig.bus.publish(rig.channels.mission_end(), rt::to_message(rt::MissionEnd{1, {0}}).value());
+  rig.drain();
+  ASSERT_TRUE(agent->mission_ended());
+  ASSERT_EQ(agent->unacknowledged_maps(), std::vector<std::int64_t>{0});
+  agent.reset();
+
+  const std::size_t sent_before = rig.maps.size();
+  agent = std::make_unique<AgentNode>(rig.bus, rig.loop, options);
+  rig.drain();
+  EXPECT_TRUE(agent->mission_ended());
+  EXPECT_FALSE(agent->mission_done());
+  EXPECT_EQ(rig.transmitted_since(sent_before), std::vector<std::int64_t>{0});
+  EXPECT_EQ(agent->local_map().seq(), 1);
+  rig.ack_map(0);
+  rig.drain();
+  EXPECT_TRUE(agent->mission_done());
+}
+
 // The crash tests' hook: after the given scan the agent is deaf, as if hung.
 TEST(AgentRestart, StallHookStopsReactingAfterTheGivenScan) {
   AgentOptions options;
