@@ -39,24 +39,28 @@ MapError map_error(const std::vector<LineSegment>& mapped_in_W, const std::vecto
     std::vector<Eigen::Vector2d> samples;
     for (int i = 0; i < n; ++i) samples.push_back(s.a + (s.b - s.a) * (static_cast<double>(i) / (n - 1)));
     ++result.segments;
-    double best_mean = std::numeric_limits<double>::infinity();
-    const LineSegment* best = nullptr;
+    // A wall mapped as one segment may be several faces in the truth (a
+    // corridor wall interrupted by doors, two rooms' walls in line): each
+    // sample is scored against the nearest face of the same direction.
+    std::vector<const LineSegment*> parallel;
     for (const LineSegment& w : walls) {
-      if (line_angle(s, w) > max_angle_rad) continue;
-      double mean = 0.0;
-      for (const auto& p : samples) mean += point_to_segment(p, w);
-      mean /= static_cast<double>(samples.size());
-      if (mean < best_mean) {
-        best_mean = mean;
-        best = &w;
-      }
+      if (line_angle(s, w) <= max_angle_rad) parallel.push_back(&w);
     }
-    if (best == nullptr || best_mean > max_distance_m) {
+    std::vector<double> distances;
+    distances.reserve(samples.size());
+    double mean = 0.0;
+    for (const auto& p : samples) {
+      double d = std::numeric_limits<double>::infinity();
+      for (const LineSegment* w : parallel) d = std::min(d, point_to_segment(p, *w));
+      distances.push_back(d);
+      mean += d;
+    }
+    mean /= static_cast<double>(samples.size());
+    if (parallel.empty() || mean > max_distance_m) {
       ++result.unmatched_segments;
       continue;
     }
-    for (const auto& p : samples) {
-      const double d = point_to_segment(p, *best);
+    for (const double d : distances) {
       sum2 += d * d;
       result.max_m = std::max(result.max_m, d);
       ++result.points;

@@ -18,16 +18,20 @@ struct LineSegment {
 
 struct MapError {
   std::size_t segments = 0;           // mapped segments scored
-  std::size_t unmatched_segments = 0; // no wall face within max_distance_m and max_angle_rad (clutter, ghosts)
+  std::size_t unmatched_segments = 0; // farther than max_distance_m from parallel walls (clutter, ghosts)
   std::size_t points = 0;             // sample points on the matched segments
   double rms_m = 0.0;                 // RMS distance of those points to their wall face
   double max_m = 0.0;
 };
 
 // Samples every mapped segment (mapped into the truth's frame by x_TW) every
-// `step_m`; each segment is matched to the wall face (same direction within
-// max_angle_rad, either orientation) nearest on average, if within
-// max_distance_m. Throws std::invalid_argument for a non-positive step.
+// `step_m`; each sample's distance is the one to the nearest wall face of the
+// same direction (within max_angle_rad, either orientation), so a segment that
+// spans several collinear faces (a wall interrupted by doors) is scored
+// against all of them, and the part of it that bridges a door counts as error.
+// A segment whose samples lie farther than max_distance_m on average matches no
+// wall (clutter such as other robots, or a ghost). Throws std::invalid_argument
+// for a non-positive step.
 MapError map_error(const std::vector<LineSegment>& mapped_in_W, const std::vector<LineSegment>& walls,
                    const Pose2& x_TW, double step_m = 0.1, double max_distance_m = 0.5,
                    double max_angle_rad = 0.3);

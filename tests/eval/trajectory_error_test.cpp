@@ -94,5 +94,19 @@ TEST(MapError, OffsetSegmentAndAGhost) {
   EXPECT_THROW(map_error(mapped, walls, Pose2(), 0.0), std::invalid_argument);
 }
 
+TEST(MapError, OneSegmentAlongCollinearFacesIsScoredAgainstEach) {
+  // A corridor wall with a 1 m door: two faces in line. A mapped segment along
+  // both, 2 cm off, bridging the door: the samples beside the faces are 2 cm
+  // off, those over the door up to 0.5 m (the nearest face end).
+  const std::vector<LineSegment> walls = {{{0, 0}, {4, 0}}, {{5, 0}, {9, 0}}};
+  const MapError along = map_error({{{0.0, 0.02}, {4.0, 0.02}}, {{5.0, 0.02}, {9.0, 0.02}}}, walls, Pose2());
+  EXPECT_EQ(along.unmatched_segments, 0u);
+  EXPECT_NEAR(along.rms_m, 0.02, 1e-12);
+  const MapError bridged = map_error({{{0.0, 0.02}, {9.0, 0.02}}}, walls, Pose2(), 0.1);
+  EXPECT_EQ(bridged.unmatched_segments, 0u);
+  EXPECT_NEAR(bridged.max_m, std::hypot(0.5, 0.02), 1e-9);
+  EXPECT_GT(bridged.rms_m, 0.05);  // the door part dominates the 2 cm elsewhere
+}
+
 }  // namespace
 }  // namespace lmf::eval

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include "lmf/mission/config_file.hpp"
 #include "lmf/mission/mission_inputs.hpp"
 #include "lmf/mission/mission_report.hpp"
 #include "lmf/sim/mission.hpp"
@@ -38,7 +39,8 @@ TEST(OfflineMission, SimulatedTwoRobotMissionJoinsBySightingAndMaps) {
   const MissionInputs inputs = load_sim_folder(simulated_folder(), SightingNoise{});
   ASSERT_EQ(inputs.robots.size(), 2u);
   ASSERT_FALSE(inputs.sightings.empty());
-  OfflineMission mission(MissionConfig{}, inputs);
+  // The configuration shipped for the simulator's laser (config/sim.json).
+  OfflineMission mission(load_mission_config(std::string(LMF_CONFIG_DIR) + "/sim.json"), inputs);
   const MissionResult result = mission.run();
   for (const RobotResult& r : result.robots) {
     SCOPED_TRACE(r.name);
@@ -51,8 +53,8 @@ TEST(OfflineMission, SimulatedTwoRobotMissionJoinsBySightingAndMaps) {
   const auto score = score_mission(result, mission.inputs(), mission.global_map());
   ASSERT_TRUE(score.has_value());
   // Odometry alone drifts by metres over this mission; the map keeps the robots
-  // within a few decimetres of the truth in one common frame.
-  EXPECT_LT(score->ate.position_rmse_m, 0.3);
+  // within a decimetre of the truth in one common frame.
+  EXPECT_LT(score->ate.position_rmse_m, 0.1);
   for (const RobotScore& s : score->robots) EXPECT_LT(s.ate.position_rmse_m, s.odometry_ate.position_rmse_m);
   EXPECT_GT(mission.global_map().counts().segments, 20);
 }
