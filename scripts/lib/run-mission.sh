@@ -4,6 +4,8 @@
 # on an lmf-sim folder. Stops every process it started. Used by scripts/demo.sh
 # through lmf_netns_exec; not meant to run on a host network.
 #   run-mission.sh BIN_DIR SIM_DIR OUT_DIR NUM_ROBOTS CONFIG PLAYER_MODE...
+# With LMF_KEYS_DIR set (lmf-keygen's folder), every lmf process runs with
+# --keys LMF_KEYS_DIR/<its principal>.keys: authenticated messages.
 set -euo pipefail
 bin=$1 sim=$2 out=$3 robots=$4 config=$5
 shift 5
@@ -23,18 +25,31 @@ stop() {  # SIGTERM one process and wait for it (bounded)
   kill -KILL "$pid" 2>/dev/null || true
 }
 
+key_args=()
+keys_for() {  # sets key_args for one principal
+  key_args=()
+  if [[ -n ${LMF_KEYS_DIR:-} ]]; then key_args=(--keys "$LMF_KEYS_DIR/$1.keys"); fi
+}
+
 mkdir -p "$out/logs"
 lcm-logger -q --force "$out/lmf.lcmlog" & logger=$!; pids+=($logger)
-"$bin/fusion_server/lmf-server" --config "$config" --out "$out" >"$out/logs/server.log" 2>&1 & server=$!; pids+=($server)
+keys_for server
+"$bin/fusion_server/lmf-server" --config "$config" --out "$out" "${key_args[@]}" >"$out/logs/server.log" 2>&1 &
+server=$!; pids+=($server)
 agents=()
 for ((r = 0; r < robots; ++r)); do
-  "$bin/robot_agent/lmf-agent" --config "$config" --robot-id "$r" >"$out/logs/agent$r.log" 2>&1 & agents+=($!); pids+=($!)
+  keys_for "robot$r"
+  "$bin/robot_agent/lmf-agent" --config "$config" --robot-id "$r" "${key_args[@]}" >"$out/logs/agent$r.log" 2>&1 &
+  agents+=($!); pids+=($!)
 done
-"$bin/monitor/lmf-monitor" --json --timing-svg "$out/timing.svg" >"$out/logs/monitor.jsonl" 2>"$out/logs/monitor.err" &
+keys_for monitor
+"$bin/monitor/lmf-monitor" --json --timing-svg "$out/timing.svg" "${key_args[@]}" >"$out/logs/monitor.jsonl" \
+  2>"$out/logs/monitor.err" &
 monitor=$!; pids+=($monitor)
 
 start=$(date +%s%N)
-"$bin/log_player/lmf-player" --config "$config" --sim "$sim" "${player_mode[@]}" --start-delay-ms 1000
+keys_for player
+"$bin/log_player/lmf-player" --config "$config" --sim "$sim" "${player_mode[@]}" --start-delay-ms 1000 "${key_args[@]}"
 end=$(date +%s%N)
 echo "replay took $(( (end - start) / 1000000 )) ms (wall clock)"
 
