@@ -5,6 +5,7 @@
 #include <exception>
 #include <fstream>
 #include <iostream>
+#include <sstream>
 #include <stdexcept>
 #include <string_view>
 
@@ -145,9 +146,9 @@ ServerNode::ServerNode(runtime::Bus& bus, runtime::EventLoop& loop, runtime::Cha
     timers_.push_back(loop_.every(std::chrono::duration_cast<std::chrono::milliseconds>(options_.write_interval),
                                   [this] { request_write(); }));
   }
-  if (store_ && options_.snapshot_interval.count() > 0) {
+  if (store_) {
     // An idle server still snapshots what it applied (bounds the journal to replay).
-    timers_.push_back(loop_.every(options_.snapshot_interval, [this] {
+    timers_.push_back(loop_.every(std::max(options_.snapshot_interval, std::chrono::milliseconds(1000)), [this] {
       if (!stopped_) worker_->try_push([this] { snapshot_now(); }, FusionWorker::Bound::kUnbounded);
     }));
   }
@@ -444,18 +445,29 @@ void ServerNode::after_task(std::int64_t lsn) {
   }
 }
 
-void ServerNode::snapshot_now() {
-  if (!store_ || !state_dirty_) return;
+void ServerNode::snapshot_now(bool at_stop) {
+  if (!store_ || (!state_dirty_ && !at_stop)) return;
+  if (at_stop) {
+    store_->wait_idle();
+  } else if (store_->writer_busy()) {
+    return;  // stays dirty: the next task or the idle timer tries again
+  }
   const auto started = Clock::now();
-  const std::string payload = encode_state();
+  std::string payload = encode_state();
   const double encode_ms = ms_since(started);
   last_snapshot_ = Clock::now();
-  if (!store_->write_snapshot(applied_lsn_, payload)) return;  // reported; stays dirty, retried next time
-  state_dirty_ = false;
-  const SnapshotStats st = store_->snapshot_stats();
-  std::cerr << "lmf-server: state: snapshot " << st.written << " at lsn " << applied_lsn_ << ": " << fusions_.size()
-            << " fusions, " << map_.counts().segments << " segments, " << st.last_bytes << " bytes, encode "
-            << encode_ms << " ms, write " << st.last_ms << " ms\n";
+  encode_ms_max_ = std::max(encode_ms_max_, encode_ms);
+  std::ostringstream note;
+  note << "; " << fusions_.size() << " fusions, " << map_.counts().segments << " segments, encoded in " << encode_ms
+       << " ms on the fusion worker";
+  if (at_stop) {
+    if (store_->write_snapshot(applied_lsn_, payload)) {
+      state_dirty_ = false;
+      std::cerr << "lmf-server: state: final snapshot at lsn " << applied_lsn_ << note.str() << '\n';
+    }
+  } else if (store_->submit_snapshot(applied_lsn_, std::move(payload), note.str())) {
+    state_dirty_ = false;
+  }
 }
 
 void ServerNode::post_outcome(std::shared_ptr<Outcome> outcome) {
@@ -593,7 +605,8 @@ bool ServerNode::write_outputs(const LoopSnapshot& loop_side) const {
                          {"snapshot_last_bytes", st.last_bytes},
                          {"snapshot_last_ms", st.last_ms},
                          {"snapshot_max_ms", st.max_ms},
-                         {"snapshot_mean_ms", st.written > 0 ? st.total_ms / static_cast<double>(st.written) : 0.0}};
+                         {"snapshot_mean_ms", st.written > 0 ? st.total_ms / static_cast<double>(st.written) : 0.0},
+                         {"snapshot_encode_max_ms", encode_ms_max_}};
     }
 
     const auto file = options_.out_dir / "report.json";
@@ -638,7 +651,7 @@ bool ServerNode::shutdown(bool write_outputs_now) {
     stats_.worker_errors = worker_->task_errors();
   }
   // The worker is joined: its state is ours now.
-  snapshot_now();
+  snapshot_now(/*at_stop=*/true);
   if (!write_outputs_now) return true;
   return write_outputs(loop_snapshot());
 }

@@ -31,10 +31,10 @@
 // map and sighting that passes the checks above is appended to the journal
 // (fsync'ed) on the loop thread just before it enters the worker FIFO, so the
 // journal order is the fusion order and nothing is acked before it is on disk.
-// The worker writes a snapshot (a copy of the map, book and records encoded on
-// the worker thread, then written there) after a task once snapshot_interval
-// has passed since the last one (0: after every task), every snapshot_interval
-// when idle, and at shutdown. At construction the snapshot is loaded and the
+// The worker encodes a snapshot (map, book and records) after a task once
+// snapshot_interval has passed since the last one (0: after every task; a
+// snapshot still being written is not waited for: the next task or the idle
+// timer tries again), and at shutdown; the store's writer thread writes it. At construction the snapshot is loaded and the
 // journal after it replayed through fuse_task/sighting_task, the same code path
 // as live input; resent local maps that it already applied are then acked
 // DUPLICATE.
@@ -191,7 +191,10 @@ class ServerNode {
   void recover_state();
   void replay(const JournalRecord& record);
   void after_task(std::int64_t lsn);
-  void snapshot_now();
+  // Encodes and submits a snapshot if anything was applied since the last one
+  // and the store's writer is free; `at_stop`: waits for the writer and writes
+  // synchronously, dirty or not.
+  void snapshot_now(bool at_stop = false);
   std::string encode_state() const;
   MapView make_view() const;
   bool write_outputs(const LoopSnapshot& loop_side) const;
@@ -221,6 +224,7 @@ class ServerNode {
   std::unique_ptr<StateStore> store_;  // its append() is called from the loop thread
   std::int64_t applied_lsn_ = 0;       // last journal record applied
   bool state_dirty_ = false;           // applied something since the last snapshot
+  double encode_ms_max_ = 0.0;
   std::chrono::steady_clock::time_point last_snapshot_{};
   StateRecovery recovery_;             // set in the constructor, read-only after
 

@@ -1,0 +1,186 @@
+// lmf_bench_state: the cost of lmf-server's durable state (fusion_server/
+// state_store.hpp) for global maps of about 100, 500, 1000 and 2000 segments:
+//   EncodeServerState   the snapshot payload (map archive + book + records), on the worker
+//   WriteSnapshot       snapshot.tmp written + fsync, renames, fsync of the directory,
+//                       journal rotation (what write_snapshot() does, after the encode)
+//   Recover             read + CRC + decode of the snapshot (a restart, no journal)
+//   JournalAppend       one local map of 30 segments appended and fdatasync'ed
+// Real time (the fsyncs wait for the disk). The maps are built as in
+// lmf_bench_fusion: synthetic local maps fused one per 12 m cell of a
+// serpentine, 30 new walls per cell, so P is dense.
+//
+// Usage: lmf_bench_state [Google Benchmark flags]; the files go into
+// $LMF_BENCH_STATE_DIR (default: a folder under the temp directory), which
+// should be on the disk the server will use.
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <benchmark/benchmark.h>
+
+#include "fusion/synthetic_maps.hpp"
+#include "fusion_server/state_store.hpp"
+#include "lmf/fusion/global_map.hpp"
+#include "runtime/convert.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using lmf::Pose2;
+using lmf::fusion::GlobalMap;
+using lmf::fusion::synthetic::Wall;
+
+constexpr double kCell = 12.0;
+constexpr int kColumns = 20;
+constexpr int kWallsPerCell = 30;
+
+Pose2 cell_frame(int i) {
+  auto centre = [](int c) {
+    const int row = c / kColumns;
+    const int col = row % 2 == 0 ? c % kColumns : kColumns - 1 - c % kColumns;
+    return Eigen::Vector2d(kCell * col, kCell * row);
+  };
+  const Eigen::Vector2d a = centre(i);
+  const Eigen::Vector2d b = centre(i + 1);
+  return {a.x(), a.y(), std::atan2(b.y() - a.y(), b.x() - a.x())};
+}
+
+std::vector<Wall> cell_walls(int i) {
+  const Pose2 c = cell_frame(i);
+  std::vector<Wall> walls;
+  for (int w = 0; w < kWallsPerCell; ++w) {
+    const double x = -5.0 + 2.0 * (w % 6);
+    const double y = -4.0 + 2.0 * (w / 6);
+    const double phi = (M_PI / 2) * ((w * 7 + i * 3) % 4) - M_PI / 2;
+    walls.push_back({Pose2(c.x + x, c.y + y, lmf::wrap_angle(phi)), 1.2});
+  }
+  return walls;
+}
+
+lmf::LocalMapSnapshot cell_snapshot(int cell, std::mt19937& rng) {
+  std::vector<Wall> seen = cell_walls(cell);
+  if (cell > 0) {
+    const std::vector<Wall> previous = cell_walls(cell - 1);
+    seen.insert(seen.end(), previous.begin(), previous.begin() + 3);
+  }
+  const Pose2 x_WL = cell_frame(cell);
+  return lmf::fusion::synthetic::make_snapshot(0, cell, x_WL, lmf::between(x_WL, cell_frame(cell + 1)), seen, {},
+                                               &rng);
+}
+
+struct World {
+  GlobalMap map;
+  lmf::mission::TrajectoryBook book;
+  std::vector<lmf::server::FusionRecord> fusions;
+  std::mt19937 rng{2024};
+  int cells = 0;
+
+  void grow_to(int segments) {
+    while (map.counts().segments < segments) {
+      const lmf::LocalMapSnapshot s = cell_snapshot(cells, rng);
+      for (const auto& r : map.fuse(s)) fusions.push_back({r, 0.0});
+      book.add(s);
+      ++cells;
+    }
+  }
+  std::string payload() const {
+    return lmf::server::encode_server_state(map, book, fusions, {}, 0.0, true, true, std::nullopt, 0);
+  }
+};
+
+// One map per size (each built from scratch: a benchmark may run alone).
+World& world(int segments) {
+  static std::map<int, std::unique_ptr<World>> worlds;
+  std::unique_ptr<World>& w = worlds[segments];
+  if (!w) {
+    w = std::make_unique<World>();
+    w->grow_to(segments);
+  }
+  return *w;
+}
+
+fs::path bench_dir(const std::string& name) {
+  const char* env = std::getenv("LMF_BENCH_STATE_DIR");
+  const fs::path base = env != nullptr ? fs::path(env) : fs::temp_directory_path() / "lmf_bench_state";
+  const fs::path dir = base / name;
+  fs::remove_all(dir);
+  return dir;
+}
+
+void sizes(benchmark::internal::Benchmark* b) {
+  for (const int n : {100, 500, 1000, 2000}) b->Arg(n);
+  b->Unit(benchmark::kMillisecond)->UseRealTime();
+}
+
+void BM_EncodeServerState(benchmark::State& state) {
+  World& w = world(static_cast<int>(state.range(0)));
+  std::size_t bytes = 0;
+  for (auto _ : state) {
+    const std::string p = w.payload();
+    bytes = p.size();
+    benchmark::DoNotOptimize(p.data());
+  }
+  state.counters["segments"] = w.map.counts().segments;
+  state.counters["state_dim"] = static_cast<double>(w.map.state().dimension());
+  state.counters["MB"] = static_cast<double>(bytes) / 1e6;
+}
+BENCHMARK(BM_EncodeServerState)->Apply(sizes);
+
+void BM_WriteSnapshot(benchmark::State& state) {
+  World& w = world(static_cast<int>(state.range(0)));
+  const std::string payload = w.payload();
+  const fs::path dir = bench_dir("write");
+  lmf::server::StateStore store(lmf::server::StateStoreOptions{dir});
+  const lmf::server::Recovery rec = store.recover();
+  store.start(rec, 0, payload);
+  std::int64_t lsn = 0;
+  for (auto _ : state) {
+    // One journal record per snapshot, as after a fusion (so the journal rotates).
+    store.append("LMF_LOCAL_MAP", payload.data(), 16, 0);
+    if (!store.write_snapshot(++lsn, payload)) state.SkipWithError("snapshot not written");
+  }
+  state.counters["segments"] = w.map.counts().segments;
+  state.counters["MB"] = static_cast<double>(payload.size()) / 1e6;
+}
+BENCHMARK(BM_WriteSnapshot)->Apply(sizes);
+
+void BM_Recover(benchmark::State& state) {
+  World& w = world(static_cast<int>(state.range(0)));
+  const fs::path dir = bench_dir("recover");
+  {
+    lmf::server::StateStore store(lmf::server::StateStoreOptions{dir});
+    const lmf::server::Recovery rec = store.recover();
+    store.start(rec, 0, w.payload());
+  }
+  int segments = 0;
+  for (auto _ : state) {
+    lmf::server::StateStore store(lmf::server::StateStoreOptions{dir});
+    const lmf::server::Recovery rec = store.recover();
+    segments = rec.state->map.counts().segments;
+  }
+  state.counters["segments"] = segments;
+}
+BENCHMARK(BM_Recover)->Apply(sizes);
+
+void BM_JournalAppend(benchmark::State& state) {
+  std::mt19937 rng(5);
+  const auto msg = lmf::runtime::to_message(cell_snapshot(3, rng));
+  const std::vector<std::uint8_t> bytes = lmf::runtime::encode_message(msg.value());
+  const fs::path dir = bench_dir("journal");
+  lmf::server::StateStore store(lmf::server::StateStoreOptions{dir});
+  const lmf::server::Recovery rec = store.recover();
+  store.start(rec, 0, world(0).payload());
+  for (auto _ : state) store.append("LMF_LOCAL_MAP", bytes.data(), bytes.size(), 0);
+  state.counters["bytes"] = static_cast<double>(bytes.size());
+}
+BENCHMARK(BM_JournalAppend)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace
+
+BENCHMARK_MAIN();
