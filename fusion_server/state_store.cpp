@@ -349,7 +349,8 @@ Recovery StateStore::recover() {
       rec.snapshot_lsn = static_cast<std::int64_t>(lsn);
       rec.snapshot_file = name;
     } catch (const std::exception& e) {
-      rec.problems.push_back(std::string(name) + " is unusable (" + e.what() + "): moved to damaged/");
+      rec.problems.push_back(std::string(name) + " is unusable (" + e.what() +
+                             "); moved to damaged/ if another snapshot is used");
       rec.set_aside.push_back(path);
     }
   }
