@@ -15,6 +15,9 @@ packages=(
   libbenchmark-dev
   iproute2 util-linux
 )
+# --fuzz: also clang and its libFuzzer runtime, for the optional libFuzzer
+# build of tests/fuzz (scripts/fuzz.sh --libfuzzer); lmf-fuzz needs neither.
+if [[ "${1:-}" == --fuzz ]]; then packages+=(clang-14 libclang-rt-14-dev); fi
 
 missing=()
 for p in "${packages[@]}"; do
