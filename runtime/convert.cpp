@@ -92,15 +92,51 @@ std::optional<Rejection> precheck(std::type_identity<lmf::global_map_t>, const s
                                                  "global_map_t.num_segments");
 }
 
+// Assumption: the message ends with `int32_t num; string names[num]; int64_t
+// counts[num]` (the reject counts of the status messages). lcm-gen's string
+// decoder trusts each length (0 or INT32_MIN make it compute `length - 1`: a
+// huge assign or a signed overflow) and keeps embedded NULs, which its encoder
+// then drops, so a status would not survive a re-publication. Reason names are
+// short lower_snake ASCII (rejection.hpp); a string of anything else but
+// printable ASCII (a monitor writes them into JSON) is decode_failed here.
+template <class Msg>
+std::optional<Rejection> check_reason_strings(const std::uint8_t* bytes, std::size_t size, std::string_view what) {
+  constexpr std::int32_t kMaxNameBytes = 64 + 1;  // with the NUL
+  // Each reason is a string (>= 5 bytes: length + NUL) and an int64 count.
+  if (auto r = check_trailing_array<Msg>(bytes, size, 5 + 8, 1024, what)) return r;
+  const std::size_t base = empty_size<Msg>();
+  const std::int32_t count = read_i32_be(bytes + base - 4);
+  std::size_t pos = base;
+  for (std::int32_t i = 0; i < count; ++i) {
+    const std::string name = std::string(what) + ": string " + to_string(i);
+    if (size - pos < 4) return reject(RejectReason::kDecodeFailed, name + " truncated");
+    const std::int32_t length = read_i32_be(bytes + pos);
+    if (length < 1 || length > kMaxNameBytes) {
+      return reject(RejectReason::kDecodeFailed, name + ": length " + to_string(length) + " outside 1.." +
+                                                     to_string(kMaxNameBytes));
+    }
+    pos += 4;
+    const auto n = static_cast<std::size_t>(length);
+    if (size - pos < n) return reject(RejectReason::kDecodeFailed, name + " truncated");
+    if (bytes[pos + n - 1] != 0) return reject(RejectReason::kDecodeFailed, name + " is not NUL-terminated");
+    for (std::size_t k = 0; k + 1 < n; ++k) {
+      if (bytes[pos + k] < 0x21 || bytes[pos + k] > 0x7e) {
+        return reject(RejectReason::kDecodeFailed, name + ": byte " + to_string(bytes[pos + k]) + " is not printable ASCII");
+      }
+    }
+    pos += n;
+  }
+  return std::nullopt;
+}
+
 std::optional<Rejection> precheck(std::type_identity<lmf::server_status_t>, const std::uint8_t* bytes,
                                   std::size_t size, const DecodeLimits&) {
-  // Each reason is a string (>= 5 bytes: length + NUL) and an int64 count.
-  return check_trailing_array<lmf::server_status_t>(bytes, size, 5 + 8, 1024, "server_status_t.num_reject_reasons");
+  return check_reason_strings<lmf::server_status_t>(bytes, size, "server_status_t.num_reject_reasons");
 }
 
 std::optional<Rejection> precheck(std::type_identity<lmf::agent_status_t>, const std::uint8_t* bytes,
                                   std::size_t size, const DecodeLimits&) {
-  return check_trailing_array<lmf::agent_status_t>(bytes, size, 5 + 8, 1024, "agent_status_t.num_reject_reasons");
+  return check_reason_strings<lmf::agent_status_t>(bytes, size, "agent_status_t.num_reject_reasons");
 }
 
 // Assumption: corrected_frames_t ends with `int32_t num_robots` followed by
@@ -166,9 +202,13 @@ std::optional<Rejection> check_angle(double angle_rad, double slack, std::string
   return std::nullopt;
 }
 
-Checked<Pose2> pose_from(const lmf::pose2_t& msg, std::string_view what) {
+Checked<Pose2> pose_from(const lmf::pose2_t& msg, std::string_view what, const DecodeLimits& limits) {
   if (auto r = check_finite(msg.x, std::string(what) + ".x")) return *r;
   if (auto r = check_finite(msg.y, std::string(what) + ".y")) return *r;
+  if (std::abs(msg.x) > limits.max_coordinate_m || std::abs(msg.y) > limits.max_coordinate_m) {
+    return reject(RejectReason::kOutOfRange, std::string(what) + " = (" + to_string(msg.x) + ", " + to_string(msg.y) +
+                                                 ") m beyond " + to_string(limits.max_coordinate_m) + " m");
+  }
   if (auto r = check_angle(msg.phi, kAngleSlackDouble, std::string(what) + ".phi")) return *r;
   return Pose2(msg.x, msg.y, wrap_angle(msg.phi));
 }
@@ -288,7 +328,10 @@ std::optional<Rejection> check_covariance(const Eigen::MatrixXd& P, std::string_
   shifted.diagonal().array() += delta;
   const Eigen::LDLT<Eigen::MatrixXd> ldlt(shifted);
   const double min_pivot = ldlt.vectorD().minCoeff();
-  if (ldlt.info() != Eigen::Success || !(min_pivot > 0.0)) {
+  // Huge entries can overflow inside the factorisation; inf - inf = NaN then
+  // slips through every comparison, so a factor with NaN or inf refuses too.
+  if (ldlt.info() != Eigen::Success || !(min_pivot > 0.0) || !ldlt.vectorD().allFinite() ||
+      !ldlt.matrixLDLT().allFinite()) {
     return reject(RejectReason::kCovarianceNotPsd,
                   std::string(what) + ": LDL^T of P + " + to_string(delta) + " I has pivot " + to_string(min_pivot) +
                       " (max P_ii = " + to_string(max_diagonal) + ")");
@@ -298,7 +341,9 @@ std::optional<Rejection> check_covariance(const Eigen::MatrixXd& P, std::string_
 
 // ---- pose2 -------------------------------------------------------------------------
 
-Checked<Pose2> from_message(const lmf::pose2_t& msg, const DecodeLimits&) { return pose_from(msg, "pose2_t"); }
+Checked<Pose2> from_message(const lmf::pose2_t& msg, const DecodeLimits& limits) {
+  return pose_from(msg, "pose2_t", limits);
+}
 
 lmf::pose2_t to_message(const Pose2& pose) {
   lmf::pose2_t msg;
@@ -322,7 +367,7 @@ Checked<RobotScan> from_message(const lmf::laser_scan_t& msg, const DecodeLimits
   if (auto r = check_nonnegative(msg.utime, "laser_scan_t.utime")) return *r;
   if (auto r = check_nonnegative(msg.robot_id, "laser_scan_t.robot_id")) return *r;
   if (auto r = check_nonnegative(msg.seq, "laser_scan_t.seq")) return *r;
-  auto odometry = pose_from(msg.odometry, "laser_scan_t.odometry");
+  auto odometry = pose_from(msg.odometry, "laser_scan_t.odometry", limits);
   if (!odometry) return odometry.rejection();
 
   if (auto r = check_angle(msg.angle_min, kAngleSlackFloat, "laser_scan_t.angle_min")) return *r;
@@ -411,7 +456,7 @@ Checked<LocalMapSnapshot> from_message(const lmf::local_map_t& msg, const Decode
     return reject(RejectReason::kOutOfRange, "local_map_t: first_scan_utime " + to_string(msg.first_scan_utime) +
                                                  " after utime " + to_string(msg.utime));
   }
-  auto robot = pose_from(msg.robot, "local_map_t.robot");
+  auto robot = pose_from(msg.robot, "local_map_t.robot", limits);
   if (!robot) return robot.rejection();
 
   LocalMapSnapshot out;
@@ -423,11 +468,14 @@ Checked<LocalMapSnapshot> from_message(const lmf::local_map_t& msg, const Decode
   out.segments.reserve(msg.segments.size());
   for (std::size_t i = 0; i < msg.segments.size(); ++i) {
     const std::string what = "local_map_t.segments[" + to_string(i) + "]";
-    auto location = pose_from(msg.segments[i].location, what + ".location");
+    auto location = pose_from(msg.segments[i].location, what + ".location", limits);
     if (!location) return location.rejection();
     const float length = msg.segments[i].length;
     if (auto r = check_finite(length, what + ".length")) return *r;
-    if (length < 0.0f) return reject(RejectReason::kOutOfRange, what + ".length = " + to_string(length) + " m < 0");
+    if (length < 0.0f || length > limits.max_coordinate_m) {
+      return reject(RejectReason::kOutOfRange, what + ".length = " + to_string(length) + " m outside [0, " +
+                                                   to_string(limits.max_coordinate_m) + "]");
+    }
     out.segments.push_back(SegmentEstimate{location.value(), length});
   }
   for (std::size_t i = 0; i < msg.covariance.size(); ++i) {
@@ -445,7 +493,7 @@ Checked<LocalMapSnapshot> from_message(const lmf::local_map_t& msg, const Decode
                                                    to_string(previous_utime) + ", " + to_string(msg.utime) + "]");
     }
     previous_utime = utime;
-    auto pose = pose_from(msg.scan_poses[i], what);
+    auto pose = pose_from(msg.scan_poses[i], what, limits);
     if (!pose) return pose.rejection();
     out.scan_poses.push_back(ScanPose{utime, pose.value()});
   }
@@ -520,7 +568,7 @@ Checked<CorrectedFrames> from_message(const lmf::corrected_frames_t& msg, const 
     if (frame.last_applied_seq < -1) {
       return reject(RejectReason::kOutOfRange, what + ".last_applied_seq = " + to_string(frame.last_applied_seq));
     }
-    auto pose = pose_from(msg.frames[i], what + ".frame");
+    auto pose = pose_from(msg.frames[i], what + ".frame", limits);
     if (!pose) return pose.rejection();
     frame.x_WL = pose.value();
     auto covariance = covariance3_from(msg.covariance[i].data(), msg.covariance[i].size(), what + ".covariance");
@@ -552,7 +600,7 @@ Checked<lmf::corrected_frames_t> to_message(const CorrectedFrames& frames, const
 
 // ---- sighting ----------------------------------------------------------------------------------
 
-Checked<Sighting> from_message(const lmf::sighting_t& msg, const DecodeLimits&) {
+Checked<Sighting> from_message(const lmf::sighting_t& msg, const DecodeLimits& limits) {
   if (auto r = check_nonnegative(msg.utime, "sighting_t.utime")) return *r;
   if (auto r = check_nonnegative(msg.observer_id, "sighting_t.observer_id")) return *r;
   if (auto r = check_nonnegative(msg.observed_id, "sighting_t.observed_id")) return *r;
@@ -561,11 +609,11 @@ Checked<Sighting> from_message(const lmf::sighting_t& msg, const DecodeLimits&) 
   }
   if (auto r = check_nonnegative(msg.observer_seq, "sighting_t.observer_seq")) return *r;
   if (auto r = check_nonnegative(msg.observed_seq, "sighting_t.observed_seq")) return *r;
-  auto x_AB = pose_from(msg.relative, "sighting_t.relative");
+  auto x_AB = pose_from(msg.relative, "sighting_t.relative", limits);
   if (!x_AB) return x_AB.rejection();
-  auto x_LA = pose_from(msg.observer_in_local, "sighting_t.observer_in_local");
+  auto x_LA = pose_from(msg.observer_in_local, "sighting_t.observer_in_local", limits);
   if (!x_LA) return x_LA.rejection();
-  auto x_LB = pose_from(msg.observed_in_local, "sighting_t.observed_in_local");
+  auto x_LB = pose_from(msg.observed_in_local, "sighting_t.observed_in_local", limits);
   if (!x_LB) return x_LB.rejection();
   auto cov_AB = covariance3_from(msg.covariance, 6, "sighting_t.covariance");
   if (!cov_AB) return cov_AB.rejection();
@@ -614,12 +662,12 @@ Checked<lmf::sighting_t> to_message(const Sighting& sighting, const CovarianceTo
 
 // ---- acknowledgements ----------------------------------------------------------------------------
 
-Checked<ScanAck> from_message(const lmf::scan_ack_t& msg, const DecodeLimits&) {
+Checked<ScanAck> from_message(const lmf::scan_ack_t& msg, const DecodeLimits& limits) {
   if (auto r = check_nonnegative(msg.utime, "scan_ack_t.utime")) return *r;
   if (auto r = check_nonnegative(msg.robot_id, "scan_ack_t.robot_id")) return *r;
   if (auto r = check_nonnegative(msg.seq, "scan_ack_t.seq")) return *r;
   if (auto r = check_nonnegative(msg.local_map_seq, "scan_ack_t.local_map_seq")) return *r;
-  auto x_LR = pose_from(msg.x_LR, "scan_ack_t.x_LR");
+  auto x_LR = pose_from(msg.x_LR, "scan_ack_t.x_LR", limits);
   if (!x_LR) return x_LR.rejection();
   auto covariance = covariance3_from(msg.covariance, 6, "scan_ack_t.covariance");
   if (!covariance) return covariance.rejection();

@@ -54,6 +54,10 @@ struct DecodeLimits {
   int max_segments = 512;                    // per local map (n = 1027 state dims)
   int max_robots = 256;                      // per corrected_frames_t and mission_end_t
   int max_scan_poses = 65536;                // per local map (a parked robot keeps scanning)
+  // |x|, |y| of every pose beyond this are garbage (out_of_range), as for the
+  // GlobalMap (GlobalMapConfig::max_coordinate_m): a finite but absurd
+  // odometry jump would otherwise overflow an agent's covariance.
+  double max_coordinate_m = 1e6;
 };
 
 // Tolerances of the covariance checks (relative to the matrix's own scale).
