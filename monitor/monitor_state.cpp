@@ -77,7 +77,11 @@ void MonitorState::on_agent_status(const lmf::agent_status_t& msg, std::int64_t 
   row.mission_done = msg.mission_done;
   row.global_pose = Pose2(msg.global_pose.x, msg.global_pose.y, msg.global_pose.phi);
   row.rejects = 0;
-  for (std::int64_t c : msg.reject_counts) row.rejects += c;
+  // Saturating: the counts come off the network (a forged INT64_MAX must not overflow).
+  constexpr std::int64_t kMaxCount = std::numeric_limits<std::int64_t>::max();
+  for (std::int64_t c : msg.reject_counts) {
+    if (c > 0) row.rejects = row.rejects > kMaxCount - c ? kMaxCount : row.rejects + c;
+  }
   row.status_utime = msg.utime;
   if (msg.window_scans > 0) {
     windows_[msg.robot_id].push_back({msg.utime, msg.scan_time_max_ms, msg.scan_time_p99_ms, msg.window_scans});
@@ -142,13 +146,15 @@ std::map<int, std::vector<TimingSample>> MonitorState::timing_series() const {
   std::map<int, std::vector<TimingSample>> out;
   for (const auto& [id, w] : windows_) {
     for (const StatusWindow& s : w) {
-      out[id].push_back({static_cast<double>(s.utime - t0) * 1e-6, s.max_ms, s.p99_ms});
+      // In double: utimes come off the network and their difference may not fit in int64.
+      out[id].push_back({(static_cast<double>(s.utime) - static_cast<double>(t0)) * 1e-6, s.max_ms, s.p99_ms});
     }
   }
   for (const auto& [id, r] : scan_ack_receipts_) {
     if (windows_.count(id)) continue;
     for (std::size_t i = 1; i < r.size(); ++i) {
-      out[id].push_back({static_cast<double>(r[i] - t0) * 1e-6, static_cast<double>(r[i] - r[i - 1]) * 1e-3, -1.0});
+      out[id].push_back({(static_cast<double>(r[i]) - static_cast<double>(t0)) * 1e-6,
+                         (static_cast<double>(r[i]) - static_cast<double>(r[i - 1])) * 1e-3, -1.0});
     }
   }
   for (auto& [id, samples] : out) {
@@ -287,6 +293,7 @@ void MonitorState::write_map_svg(const std::filesystem::path& file) const {
     dot.stroke = "none";
     dot.fill = kPalette[colour++ % std::size(kPalette)];
     const Eigen::Vector2d p(r.global_pose.x, r.global_pose.y);
+    if (!p.allFinite()) continue;  // a hostile or broken agent_status_t: SvgDocument refuses it
     svg.add_dot(p, 4.0, dot);
     io::SvgTextStyle label;
     label.color = dot.fill;

@@ -60,7 +60,10 @@ std::optional<std::pair<Reason, std::string>> covariance_problem(const Eigen::Ma
   // say by how much when the test fails.
   Eigen::MatrixXd shifted = 0.5 * (P + P.transpose());
   shifted.diagonal().array() += std::max(tolerance * scale, std::numeric_limits<double>::min());
-  if (Eigen::LLT<Eigen::MatrixXd>(shifted).info() == Eigen::Success) return std::nullopt;
+  // A factor with NaN or inf is a failure too: huge entries overflow inside
+  // the factorisation and NaN passes LLT's own pivot test (found by fuzzing).
+  const Eigen::LLT<Eigen::MatrixXd> llt(shifted);
+  if (llt.info() == Eigen::Success && llt.matrixLLT().allFinite()) return std::nullopt;
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(0.5 * (P + P.transpose()), Eigen::EigenvaluesOnly);
   return std::pair{Reason::kNotSymmetricPsd, "is not positive semidefinite (smallest eigenvalue " +
                                                  std::to_string(es.eigenvalues().minCoeff()) + ")"};

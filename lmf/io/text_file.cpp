@@ -10,6 +10,7 @@
 #include <cstring>
 #include <stdexcept>
 #include <system_error>
+#include <vector>
 
 namespace lmf::io {
 namespace {
@@ -29,37 +30,45 @@ void for_each_line(const std::filesystem::path& file,
   } closer{in};
   gzbuffer(in, 1u << 17);
 
+  // gzread and an explicit split on '\n' (not gzgets + strlen): a NUL byte in
+  // hostile input must not end a line early and glue it to the next one,
+  // which would shift every later line number in error messages.
   std::string line;
   std::size_t line_number = 0;
-  char chunk[1 << 16];
-  bool more = true;
-  while (more) {
-    // A line can be longer than one chunk (4096 beams in a CARMEN log): append until '\n'.
-    line.clear();
-    bool got_any = false;
-    for (;;) {
-      if (gzgets(in, chunk, static_cast<int>(sizeof chunk)) == nullptr) {
-        more = false;
-        break;
-      }
-      got_any = true;
-      const std::size_t len = std::strlen(chunk);
-      line.append(chunk, len);
-      if (len > 0 && chunk[len - 1] == '\n') break;
-    }
-    if (!more) {
-      int err = Z_OK;
-      const char* message = gzerror(in, &err);
-      if (err != Z_OK && err != Z_STREAM_END) {
-        throw std::runtime_error("error reading " + file.string() + " after line " + std::to_string(line_number) +
-                                 ": " + (err == Z_ERRNO ? std::string(std::strerror(errno)) : message));
-      }
-    }
-    if (!got_any) break;
+  const auto emit = [&] {
     ++line_number;
     while (!line.empty() && (line.back() == '\n' || line.back() == '\r')) line.pop_back();
     on_line(line, line_number);
+    line.clear();
+  };
+  std::vector<char> chunk(1 << 16);
+  for (;;) {
+    const int n = gzread(in, chunk.data(), static_cast<unsigned>(chunk.size()));
+    if (n <= 0) {
+      int err = Z_OK;
+      const char* message = gzerror(in, &err);
+      if (n < 0 || (err != Z_OK && err != Z_STREAM_END)) {
+        throw std::runtime_error("error reading " + file.string() + " after line " + std::to_string(line_number) +
+                                 ": " + (err == Z_ERRNO ? std::string(std::strerror(errno)) : message));
+      }
+      break;
+    }
+    const char* data = chunk.data();
+    const auto size = static_cast<std::size_t>(n);
+    std::size_t start = 0;
+    while (start < size) {
+      const void* newline = std::memchr(data + start, '\n', size - start);
+      if (newline == nullptr) {
+        line.append(data + start, size - start);  // a line longer than one chunk, or the last line
+        break;
+      }
+      const auto end = static_cast<std::size_t>(static_cast<const char*>(newline) - data);
+      line.append(data + start, end - start);
+      emit();
+      start = end + 1;
+    }
   }
+  if (!line.empty()) emit();  // a last line without newline
 }
 
 void write_text_file(const std::filesystem::path& file, const std::string& text, bool gzip) {
