@@ -1,0 +1,17 @@
+// Fuzz target: LMF_MISSION_END as lmf-agent receives it:
+// runtime::decode<MissionEnd> and, for accepted input, the re-encode round trip.
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "decode_target.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  return lmf::fuzz::fuzz_decode<lmf::runtime::MissionEnd>(data, size);
+}
+
+std::vector<lmf::fuzz::Bytes> LmfFuzzSeeds() {
+  std::vector<lmf::fuzz::Bytes> seeds;
+  for (const auto& v : lmf::fuzz::corpus().mission_ends) seeds.push_back(lmf::fuzz::encode(lmf::runtime::to_message(v).value()));
+  return seeds;
+}

@@ -1,0 +1,18 @@
+// Fuzz target: LMF_SERVER_STATUS as lmf-monitor reads it: runtime::decode_message<server_status_t>,
+// the round trip, then MonitorState, its JSON line and table.
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "monitor_target.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  return lmf::fuzz::fuzz_monitor_message<lmf::server_status_t>(
+      data, size, [](lmf::monitor::MonitorState& state, const lmf::server_status_t& m, std::int64_t now) { state.on_server_status(m, now); });
+}
+
+std::vector<lmf::fuzz::Bytes> LmfFuzzSeeds() {
+  std::vector<lmf::fuzz::Bytes> seeds;
+  for (const auto& m : lmf::fuzz::corpus().server_statuses) seeds.push_back(lmf::fuzz::encode(m));
+  return seeds;
+}
