@@ -218,7 +218,9 @@ std::string carmen_flaser_line(const LaserScan& scan, const std::string& host) {
   }
   std::string out = "FLASER " + std::to_string(n);
   out.reserve(out.size() + n * 8 + 128);
-  char buf[128];
+  // %.3f / %.6f of a double take up to 317 characters (1e308 has 309 digits):
+  // room for three, so a huge value is written whole, never cut short.
+  char buf[1024];
   for (std::size_t i = 0; i < n; ++i) {
     const double r = scan.ranges_m[i];
     if (!std::isfinite(r) || r < 0.0) {

@@ -44,8 +44,8 @@ const std::array<float, 8> kFloats = {
     std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(),
     -std::numeric_limits<float>::infinity(), std::numeric_limits<float>::max(), -1.0f, 0.0f, -0.0f, 1e-45f};
 
-constexpr std::array<std::string_view, 28> kTokens = {
-    "nan", "-nan", "inf", "-inf", "infinity", "1e309", "-1e309", "1e-320", "0", "-0", "-1", "1", "2", "4096",
+constexpr std::array<std::string_view, 31> kTokens = {
+    "nan", "-nan", "inf", "-inf", "infinity", "1e309", "-1e309", "1e300", "-1e200", "1e40", "1e-320", "0", "-0", "-1", "1", "2", "4096",
     "4097", "99999999999999999999", "9e12", "9.1e12", "0x10", "+", "-", "1.5.2", "FLASER", "ROBOTLASER1", "ODOM",
     "PARAM", "#", ""};
 
