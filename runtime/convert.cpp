@@ -741,3 +741,14 @@ lmf::local_map_ack_t to_message(const LocalMapAck& ack) {
 }
 
 }  // namespace lmf::runtime
+
+// lcm-gen declares message constants as `static const` members with an
+// initializer but no definition. Code that binds one to a reference (gtest's
+// EXPECT_EQ, a std::tuple built from it) odr-uses it and needs this
+// definition: optimised builds fold it away, the sanitizer build does not
+// link without it. Every user of the messages links lmf::runtime.
+namespace lmf {
+const std::int8_t local_map_ack_t::FUSED;
+const std::int8_t local_map_ack_t::DUPLICATE;
+const std::int8_t local_map_ack_t::QUEUED;
+}  // namespace lmf
