@@ -321,8 +321,11 @@ TEST_F(ServerNodeTest, FullQueueDefersWithoutAckAndResendsAreFusedOnce) {
     for (std::int64_t seq = 0; seq < kMaps; ++seq) {
       if (!acked(seq)) bus_.publish(channels_.local_map(), to_msg(make_map(0, seq)));
     }
-    run_until([&] { return !node.worker_busy(); }, 1000ms);
-    loop_.run_for(10ms);
+    // Quiet before the next round: worker idle and nothing left to deliver
+    // (acks included), so only maps the server has not applied are resent; a
+    // fixed wait was too short for a slow (sanitizer) build, whose resends
+    // then crossed their acks and were answered DUPLICATE.
+    run_until([&] { return !node.worker_busy() && loop_.poll() == 0; }, 1000ms);
     ++rounds;
   }
   ASSERT_TRUE(all_acked()) << "after " << rounds << " rounds";
