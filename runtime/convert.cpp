@@ -317,6 +317,10 @@ std::optional<Rejection> check_covariance(const Eigen::MatrixXd& P, std::string_
   // matters: an unshifted singular PSD matrix makes Eigen's LDLT meet zero
   // pivots over rounding-level columns and report failure.
   const double max_diagonal = P.diagonal().maxCoeff();
+  if (max_diagonal > tolerance.max_variance) {
+    return reject(RejectReason::kOutOfRange, std::string(what) + ": variance " + to_string(max_diagonal) + " above " +
+                                                 to_string(tolerance.max_variance));
+  }
   if (max_diagonal <= 0.0) {
     if (max_diagonal == 0.0 && scale == 0.0) return std::nullopt;  // the zero matrix
     return reject(RejectReason::kCovarianceNotPsd,

@@ -64,6 +64,10 @@ struct DecodeLimits {
 struct CovarianceTolerance {
   double symmetry = 1e-9;  // |P_ij - P_ji| <= symmetry * max |P|
   double psd = 1e-9;       // eigenvalues >= -psd * max P_ii (tested as P + psd max P_ii I > 0)
+  // Largest variance (m², rad²): a standard deviation beyond 1e6 (the
+  // coordinate bound, DecodeLimits::max_coordinate_m) is garbage, and a finite
+  // but absurd one (1e268) overflowed the fusion into NaN (found by fuzzing).
+  double max_variance = 1e12;
 };
 
 // ---- 1. bytes <-> LCM messages ---------------------------------------------
@@ -85,9 +89,10 @@ std::vector<double> pack_upper_triangle(const Eigen::MatrixXd& P);
 // The symmetric n x n matrix of a packed upper triangle; requires
 // packed.size() == n(n+1)/2 (checked by callers; asserts).
 Eigen::MatrixXd unpack_upper_triangle(std::span<const double> packed, int n);
-// nullopt when P is square, finite, symmetric and PSD within tolerance, else
-// the rejection (wrong_size, non_finite, covariance_not_symmetric,
-// covariance_not_psd) naming `what`. PSD is decided by a pivoted LDLᵀ
+// nullopt when P is square, finite, symmetric and PSD within tolerance with
+// no variance above tolerance.max_variance, else the rejection (wrong_size,
+// non_finite, covariance_not_symmetric, covariance_not_psd, out_of_range)
+// naming `what`. PSD is decided by a pivoted LDLᵀ
 // factorisation of the slightly shifted matrix (no eigen-decomposition).
 std::optional<Rejection> check_covariance(const Eigen::MatrixXd& P, std::string_view what,
                                           const CovarianceTolerance& tolerance = {});

@@ -213,6 +213,13 @@ void GlobalMap::check_covariance(const Eigen::MatrixXd& P, const std::string& wh
   if (const auto problem = covariance_problem(P, config_.snapshot_tolerance)) {
     throw InvalidInput(problem->first, what + " " + problem->second);
   }
+  // A standard deviation beyond max_coordinate_m is garbage like such a
+  // coordinate; a finite but absurd variance (1e268) overflowed the fusion
+  // into a NaN map (found by fuzzing).
+  const double max_variance = config_.max_coordinate_m * config_.max_coordinate_m;
+  if (P.size() > 0 && P.diagonal().maxCoeff() > max_variance) {
+    throw InvalidInput(Reason::kOutOfRange, what + " has a variance above max_coordinate_m²");
+  }
 }
 
 void GlobalMap::validate(const LocalMapSnapshot& s) const {

@@ -77,6 +77,21 @@ TEST(FuzzRegression, HugeOffDiagonalCovarianceIsRefusedAndTheMapIsUnchanged) {
   EXPECT_TRUE(lmf::fuzz::fingerprint(global) == before);
 }
 
+// Var(y_R) = 9.2e268: finite and PSD, accepted by both validators, and the
+// fusion overflowed into a NaN corrected frame.
+TEST(FuzzRegression, AbsurdVarianceIsRefusedAndTheMapIsUnchanged) {
+  const lmf::fuzz::Corpus& c = lmf::fuzz::corpus();
+  lmf::LocalMapSnapshot map = c.pending_maps.front();
+  map.covariance(1, 1) = 9.2e268;
+  const auto r = rt::check_covariance(map.covariance, "P");
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(r->reason, rt::RejectReason::kOutOfRange);
+  lmf::fusion::GlobalMap global = c.prepared_map;
+  const lmf::fuzz::MapFingerprint before = lmf::fuzz::fingerprint(global);
+  EXPECT_THROW(global.fuse(map), lmf::fusion::InvalidInput);
+  EXPECT_TRUE(lmf::fuzz::fingerprint(global) == before);
+}
+
 // ---- lmf/io ------------------------------------------------------------------------------
 
 TEST(FuzzRegression, NulBytesDoNotGlueLinesTogether) {
