@@ -665,10 +665,9 @@ ServerNode::LoopSnapshot ServerNode::loop_snapshot() const {
 }
 
 std::vector<std::pair<std::string, std::int64_t>> ServerNode::reject_counts() const {
-  std::map<std::string, std::int64_t> merged;
-  for (const auto& [name, count] : rejects_.nonzero()) merged[name] += count;
-  for (const auto& [name, count] : bus_.rejects().nonzero()) merged[name] += count;
-  return {merged.begin(), merged.end()};
+  runtime::RejectCounter all = rejects_;
+  all.merge(bus_.rejects());
+  return all.nonzero();
 }
 
 void ServerNode::publish_ack(int robot_id, std::int64_t seq, runtime::LocalMapAck::Status status) {

@@ -404,6 +404,12 @@ void AgentNode::on_mission_end(const std::string& channel, const void* data, std
 
 // ---- status -----------------------------------------------------------------------------------
 
+runtime::RejectCounter AgentNode::all_rejects() const {
+  runtime::RejectCounter all = rejects_;
+  all.merge(bus_.rejects());
+  return all;
+}
+
 void AgentNode::publish_status() {
   const mission::TimingStats timing = mission::timing_stats(window_scan_times_ms_);
   lmf::agent_status_t msg{};
@@ -422,7 +428,7 @@ void AgentNode::publish_status() {
   const std::optional<Pose2> pose = global_pose();
   msg.global_pose = rt::to_message(pose.value_or(Pose2()));
   msg.mission_done = mission_done();
-  for (const auto& [reason, count] : rejects_.nonzero()) {
+  for (const auto& [reason, count] : all_rejects().nonzero()) {
     msg.reject_reasons.push_back(reason);
     msg.reject_counts.push_back(count);
   }

@@ -117,7 +117,10 @@ class AgentNode {
 
   int robot_id() const { return options_.robot_id; }
   const AgentCounters& counters() const { return counters_; }
+  // Messages the node refused (bad content, old seq, another robot's).
   const runtime::RejectCounter& rejects() const { return rejects_; }
+  // Those plus the ones its Bus refused before decoding (authentication, undecodable).
+  runtime::RejectCounter all_rejects() const;
   const LocalMap& local_map() const { return local_map_; }
   // Seq of the next scan expected (0 before any).
   std::int64_t next_scan_seq() const { return next_scan_seq_; }

@@ -86,7 +86,7 @@ int main(int argc, char** argv) {
   std::ostringstream summary;  // one write, so agents sharing a terminal do not interleave
   summary << kProgram << " " << robot_id << ": stopped; " << c.scans_processed << " scans, " << c.maps_shipped
             << " local maps shipped, " << c.maps_acknowledged << " acknowledged, " << c.map_resends << " resends, "
-            << agent.rejects().total() << " messages rejected"
+            << agent.all_rejects().total() << " messages rejected"
             << (agent.mission_done() ? ", mission done" : agent.mission_ended() ? ", mission end received" : "")
             << "; per-scan time p50 " << timing.p50_ms << " ms, p99 " << timing.p99_ms << " ms, max " << timing.max_ms
             << " ms\n";

@@ -43,6 +43,10 @@ bool should_log(std::int64_t n) {
 
 void RejectCounter::add(RejectReason reason) { ++counts_[static_cast<std::size_t>(reason)]; }
 
+void RejectCounter::merge(const RejectCounter& other) {
+  for (std::size_t i = 0; i < kNumRejectReasons; ++i) counts_[i] += other.counts_[i];
+}
+
 void RejectCounter::record(const Rejection& rejection, std::string_view source) {
   add(rejection.reason);
   const std::int64_t n = count(rejection.reason);

@@ -81,6 +81,8 @@ class RejectCounter {
   void record(const Rejection& rejection, std::string_view source);
   // Counts without logging.
   void add(RejectReason reason);
+  // Adds every count of `other` (a node's own refusals plus its Bus's).
+  void merge(const RejectCounter& other);
 
   std::int64_t count(RejectReason reason) const;
   std::int64_t total() const;

@@ -607,4 +607,20 @@ TEST(RejectCounter, CountsAndNamesAreStable) {
   }
 }
 
+TEST(RejectCounter, MergeAddsEveryReason) {
+  rt::RejectCounter node;
+  node.add(RejectReason::kStaleSequence);
+  node.add(RejectReason::kNonFinite);
+  rt::RejectCounter bus;
+  bus.add(RejectReason::kAuthBadTag);
+  bus.add(RejectReason::kAuthBadTag);
+  bus.add(RejectReason::kStaleSequence);
+  node.merge(bus);
+  EXPECT_EQ(node.count(RejectReason::kStaleSequence), 2);
+  EXPECT_EQ(node.count(RejectReason::kNonFinite), 1);
+  EXPECT_EQ(node.count(RejectReason::kAuthBadTag), 2);
+  EXPECT_EQ(node.total(), 5);
+  EXPECT_EQ(bus.total(), 3);  // the merged-in counter is unchanged
+}
+
 }  // namespace
