@@ -46,7 +46,15 @@ for ((r = 0; r < robots; ++r)); do grep -h "scans" "$out/logs/agent$r.log" | tai
 python3 - "$out/report.json" <<'PY' 2>/dev/null || true
 import json, sys
 r = json.load(open(sys.argv[1]))
-print(json.dumps({k: r[k] for k in r if k not in ("fusions",)}, indent=1)[:1500])
+m, t, msg = r["map"], r["fusion_timing"], r["messages"]
+print(f"lmf-server: {msg['local_maps_received']} local maps received, {msg['acks_fused']} fused "
+      f"(p50 {t['p50_ms']:.1f} ms, p99 {t['p99_ms']:.1f} ms, max {t['max_ms']:.1f} ms); "
+      f"map {m['segments']} segments, {m['submaps']} submaps, {m['graph_edges']} graph edges, "
+      f"{m['robots_joined']} robots joined; P PSD throughout: {'yes' if r['global_covariance_always_ok'] else 'NO'}")
+status = {}
+for s in r.get("sightings", []): status[s["status"]] = status.get(s["status"], 0) + 1
+print("sightings:", ", ".join(f"{n} {k}" for k, n in sorted(status.items())) or "none",
+      "| rejected messages:", ", ".join(f"{n} {k}" for k, n in r.get("rejects", {}).items()) or "none")
 PY
 est=() 
 for ((r = 0; r < robots; ++r)); do est+=(--est "$out/trajectories/robot$r.txt" --ref "$out/sim/robot$r.gt"); done
