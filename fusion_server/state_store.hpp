@@ -74,7 +74,8 @@
 
 namespace lmf::server {
 
-inline constexpr std::uint32_t kStateVersion = 1;
+// 2: the global map inside is kGlobalMapArchiveVersion 2.
+inline constexpr std::uint32_t kStateVersion = 2;
 
 // The state directory cannot be used (in use, unreadable, every snapshot corrupt, I/O error).
 class StateError : public std::runtime_error {

@@ -185,6 +185,8 @@ void GlobalMapConfig::validate() const {
     if (!ok) throw std::invalid_argument("GlobalMapConfig: " + what);
   };
   require(alpha > 0.0 && alpha < 1.0, "alpha must be in (0, 1)");
+  require(std::isfinite(local_map_covariance_scale) && local_map_covariance_scale > 0.0,
+          "local_map_covariance_scale must be finite and > 0");
   require(std::isfinite(gate_angle_rad) && gate_angle_rad >= 0.0, "gate_angle_rad must be finite and >= 0");
   require(std::isfinite(gate_distance_m) && gate_distance_m >= 0.0, "gate_distance_m must be finite and >= 0");
   require(std::isfinite(gate_gap_m) && gate_gap_m >= 0.0, "gate_gap_m must be finite and >= 0");
@@ -410,7 +412,7 @@ void GlobalMap::prepare_backward(int robot_id, std::int64_t seq) {
   const PreviousFrame pf = previous_frame(state_.root_location(next), s.x_LR);
   const EntityId L = state_.add(EntityKind::kFrame, pf.x_WL_previous);
   const EntityId R = state_.add(EntityKind::kRobot, s.x_LR, L);
-  state_.set_block(R, R, s.covariance.topLeftCorner(3, 3));
+  state_.set_block(R, R, config_.local_map_covariance_scale * s.covariance.topLeftCorner(3, 3));
   state_.replace_perturbation(L, {{next, pf.J_next}, {R, pf.J_R}});
   rec.frames[seq] = {L, R};
   rec.min_seq = std::min(rec.min_seq, seq);
@@ -581,6 +583,8 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
 
   // (1) Augmentation, eq. (4): the local map is independent of the global one,
   // P⁻ = [[P, 0], [0, P_Mr]]; robot and local segments are children of L_r.
+  // P_Mr is the shipped covariance times local_map_covariance_scale.
+  const Eigen::MatrixXd P_Mr = config_.local_map_covariance_scale * s.covariance;
   const std::size_t k = s.segments.size();
   const auto k_rows = static_cast<Eigen::Index>(2 * k);
   std::vector<EntityId> local(k);
@@ -592,13 +596,13 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
   std::copy(added.end() - static_cast<std::ptrdiff_t>(k), added.end(), local.begin());
   if (!anchored) {
     R = added.front();
-    state_.set_marginal(added, s.covariance);
+    state_.set_marginal(added, P_Mr);
   } else {
     // The robot is already in the state (it defined L_r); the segments join
     // conditioned on it: p_S = A p_R + w, A = P_SR P_RR⁺, Cov(w) = P_SS − A P_RS.
     R = *slot.robot;
-    const Eigen::MatrixXd P_RR = s.covariance.topLeftCorner(3, 3);
-    const Eigen::MatrixXd P_SR = s.covariance.bottomLeftCorner(k_rows, 3);
+    const Eigen::MatrixXd P_RR = P_Mr.topLeftCorner(3, 3);
+    const Eigen::MatrixXd P_SR = P_Mr.bottomLeftCorner(k_rows, 3);
     const spmap::CarefulInverse ci = spmap::careful_inverse(P_RR, rel);
     Eigen::MatrixXd P_RR_pinv = Eigen::MatrixXd::Zero(3, 3);
     for (std::size_t a = 0; a < ci.kept.size(); ++a) {
@@ -610,7 +614,7 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
     for (std::size_t j = 0; j < k; ++j) {
       state_.replace_perturbation(local[j], {{R, A.middleRows(static_cast<Eigen::Index>(2 * j), 2)}});
     }
-    Eigen::MatrixXd residual = s.covariance.bottomRightCorner(k_rows, k_rows) - A * P_SR.transpose();
+    Eigen::MatrixXd residual = P_Mr.bottomRightCorner(k_rows, k_rows) - A * P_SR.transpose();
     residual = (0.5 * (residual + residual.transpose())).eval();
     state_.add_to_marginal(local, residual);
   }

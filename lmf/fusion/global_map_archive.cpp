@@ -218,7 +218,7 @@ void write_framed(std::ostream& out, std::string_view magic, std::uint32_t versi
   out.write(tail.data(), static_cast<std::streamsize>(tail.size()));
 }
 
-std::string read_framed(std::istream& in, std::string_view magic, std::uint32_t max_version, std::uint32_t& version,
+std::string read_framed(std::istream& in, std::string_view magic, std::uint32_t this_version, std::uint32_t& version,
                         std::uint64_t max_length) {
   const std::string what = "archive '" + std::string(magic.substr(0, magic.find('\0'))) + "'";
   char head[20];
@@ -230,9 +230,10 @@ std::string read_framed(std::istream& in, std::string_view magic, std::uint32_t 
   ArchiveReader h(head + 8, 12, what);
   version = h.u32();
   const std::uint64_t length = h.u64();
-  if (version == 0 || version > max_version) {
-    throw ArchiveError(what + ": unknown version " + std::to_string(version) + " (this build reads 1.." +
-                       std::to_string(max_version) + ")");
+  if (version != this_version) {
+    throw ArchiveError(what + ": " + (version != 0 && version < this_version ? "older" : "unknown") + " version " +
+                       std::to_string(version) + " (this build reads version " + std::to_string(this_version) +
+                       " only)");
   }
   if (length > max_length) throw ArchiveError(what + ": implausible payload length " + std::to_string(length));
   // Read in chunks: a corrupt length never allocates more than the stream holds.
@@ -273,9 +274,10 @@ class GlobalMapArchive {
 };
 
 // Payload, in order:
-//   config      10 f64 (alpha, gate_angle_rad, gate_distance_m, gate_gap_m,
+//   config      11 f64 (alpha, gate_angle_rad, gate_distance_m, gate_gap_m,
 //               gate_sigmas, min_overlap_m, careful_relative_tolerance,
-//               careful_absolute_floor, snapshot_tolerance, max_coordinate_m),
+//               careful_absolute_floor, snapshot_tolerance, max_coordinate_m,
+//               local_map_covariance_scale),
 //               u8 first_robot_defines_world, u8 health, i32 frame_history_per_robot
 //   state       i64 next_id, i64 n, i64 capacity, u64 count + entities
 //               (i64 id, u8 kind, pose, f64 length, u8 has_parent, i64 parent,
@@ -293,7 +295,7 @@ class GlobalMapArchive {
 void GlobalMapArchive::write_config(ArchiveWriter& w, const GlobalMapConfig& c) {
   for (const double v : {c.alpha, c.gate_angle_rad, c.gate_distance_m, c.gate_gap_m, c.gate_sigmas, c.min_overlap_m,
                          c.careful_relative_tolerance, c.careful_absolute_floor, c.snapshot_tolerance,
-                         c.max_coordinate_m}) {
+                         c.max_coordinate_m, c.local_map_covariance_scale}) {
     w.f64(v);
   }
   w.boolean(c.first_robot_defines_world);
@@ -305,7 +307,7 @@ GlobalMapConfig GlobalMapArchive::read_config(ArchiveReader& r) {
   GlobalMapConfig c;
   for (double* v : {&c.alpha, &c.gate_angle_rad, &c.gate_distance_m, &c.gate_gap_m, &c.gate_sigmas, &c.min_overlap_m,
                     &c.careful_relative_tolerance, &c.careful_absolute_floor, &c.snapshot_tolerance,
-                    &c.max_coordinate_m}) {
+                    &c.max_coordinate_m, &c.local_map_covariance_scale}) {
     *v = r.f64();
   }
   c.first_robot_defines_world = r.boolean();

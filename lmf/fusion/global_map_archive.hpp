@@ -44,7 +44,8 @@
 
 namespace lmf::fusion {
 
-inline constexpr std::uint32_t kGlobalMapArchiveVersion = 1;
+// 2: GlobalMapConfig::local_map_covariance_scale.
+inline constexpr std::uint32_t kGlobalMapArchiveVersion = 2;
 
 // A bad, short, corrupt or unknown-version archive (what and where).
 class ArchiveError : public std::runtime_error {
@@ -108,9 +109,10 @@ class ArchiveReader {
 // version, length, payload, CRC-32.
 void write_framed(std::ostream& out, std::string_view magic, std::uint32_t version, std::string_view payload);
 // Reads one framed archive; returns its payload and sets `version`. Throws
-// ArchiveError for a wrong magic, a version above `max_version` (or 0), a
-// length above `max_length`, a short stream or a checksum mismatch.
-std::string read_framed(std::istream& in, std::string_view magic, std::uint32_t max_version, std::uint32_t& version,
+// ArchiveError for a wrong magic, a version other than `this_version` (older
+// archives are not converted: refused by name rather than misread), a length
+// above `max_length`, a short stream or a checksum mismatch.
+std::string read_framed(std::istream& in, std::string_view magic, std::uint32_t this_version, std::uint32_t& version,
                         std::uint64_t max_length = std::uint64_t{1} << 40);
 
 // The whole map as a framed archive (magic "LMFGMAP\0").

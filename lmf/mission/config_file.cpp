@@ -6,6 +6,7 @@ namespace lmf::mission {
 
 void read_config(io::JsonReader& r, fusion::GlobalMapConfig& c) {
   r.read("alpha", c.alpha);
+  r.read("local_map_covariance_scale", c.local_map_covariance_scale);
   r.read("gate_angle_rad", c.gate_angle_rad);
   r.read("gate_distance_m", c.gate_distance_m);
   r.read("gate_gap_m", c.gate_gap_m);

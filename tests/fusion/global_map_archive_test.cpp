@@ -220,10 +220,10 @@ TEST(GlobalMapArchiveTest, BrokenInvariantsAreRejectedEvenWithAGoodChecksum) {
   std::string payload;
   ArchiveWriter w(payload);
   write_global_map(w, map);
-  // The first entity's offset sits after the config (10 f64 + 2 u8 + i32 = 86
+  // The first entity's offset sits after the config (11 f64 + 2 u8 + i32 = 94
   // bytes), next_id, n, capacity, count (32) and its id, kind, pose, length,
   // parent flag and parent (58 - 8 bytes): set it to 1.
-  const std::size_t offset_at = 86 + 32 + 50;
+  const std::size_t offset_at = 94 + 32 + 50;
   std::int64_t offset = 0;
   std::memcpy(&offset, payload.data() + offset_at, sizeof offset);
   ASSERT_EQ(offset, 0);
@@ -249,6 +249,16 @@ TEST(GlobalMapArchiveTest, UnknownVersionAndForeignFilesAreRejected) {
     FAIL() << "a future version was accepted";
   } catch (const ArchiveError& e) {
     EXPECT_NE(std::string(e.what()).find("unknown version"), std::string::npos) << e.what();
+  }
+  // An older archive is refused by name, never parsed with this build's layout.
+  std::string older = bytes;
+  const std::uint32_t previous = kGlobalMapArchiveVersion - 1;
+  std::memcpy(older.data() + 8, &previous, sizeof previous);
+  try {
+    from_bytes(older);
+    FAIL() << "an older version was accepted";
+  } catch (const ArchiveError& e) {
+    EXPECT_NE(std::string(e.what()).find("older version"), std::string::npos) << e.what();
   }
   EXPECT_THROW(from_bytes("not an archive at all, just some text that is long enough"), ArchiveError);
   EXPECT_THROW(from_bytes(""), ArchiveError);

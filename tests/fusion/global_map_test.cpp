@@ -64,12 +64,15 @@ TEST(GlobalMapTest, FirstLocalMapCreatesASubmapAndMovesTheFrameByTheRobotPose) {
   EXPECT_EQ(r.size_after.state_dimension, 3 + 3 + 8);
   for (const SegmentView& seg : map.segments()) EXPECT_EQ(seg.submap, *r.new_submap);
 
-  // DESIGN §5.6: L_r <- L_r ⊕ x_R; L was exact, so its covariance is the robot's.
+  // DESIGN §5.6: L_r <- L_r ⊕ x_R; L was exact, so its covariance is the
+  // robot's, as the fusion takes it: scaled by local_map_covariance_scale.
   const std::optional<CorrectedFrame> f = map.corrected_frame(0);
   ASSERT_TRUE(f.has_value());
   EXPECT_EQ(f->seq, 1);
   EXPECT_TRUE(is_near(f->x_WL, x_LR, 1e-12, 1e-12));
-  EXPECT_TRUE(matrices_near(f->covariance, s.covariance.topLeftCorner(3, 3), 1e-12));
+  const double scale = map.config().local_map_covariance_scale;
+  EXPECT_EQ(scale, 4.0);
+  EXPECT_TRUE(matrices_near(f->covariance, scale * s.covariance.topLeftCorner(3, 3), 1e-12));
   EXPECT_TRUE(r.min_eigenvalue.has_value());
   EXPECT_GE(*r.min_eigenvalue, -1e-12);
   for (const Wall& w : walls) EXPECT_NE(find_segment(map.segments(), w, 1e-9, 1e-9), nullptr);
@@ -130,7 +133,7 @@ TEST(GlobalMapTest, FusionEqualsTheDenseAugmentedEkf) {
   const Eigen::Index N = n + 3 + 8;
   Eigen::MatrixXd P = Eigen::MatrixXd::Zero(N, N);
   P.topLeftCorner(n, n) = state.full_covariance();  // eq. (4)
-  P.bottomRightCorner(11, 11) = s.covariance;
+  P.bottomRightCorner(11, 11) = map.config().local_map_covariance_scale * s.covariance;
   // H of the 4 pairings (eq. 12), from the same chains in a copy augmented the same way.
   GlobalState augmented = state;
   const EntityId R = augmented.add(EntityKind::kRobot, s.x_LR, L);
@@ -522,6 +525,11 @@ TEST(GlobalMapTest, InvalidSnapshotsAreRejectedAndTheMapIsUnchanged) {
   GlobalMapConfig wrong;
   wrong.alpha = 1.5;
   EXPECT_THROW(GlobalMap{wrong}, std::invalid_argument);
+  for (const double scale : {0.0, -1.0, nan, std::numeric_limits<double>::infinity()}) {
+    GlobalMapConfig bad_scale;
+    bad_scale.local_map_covariance_scale = scale;
+    EXPECT_THROW(GlobalMap{bad_scale}, std::invalid_argument) << scale;
+  }
 }
 
 }  // namespace
