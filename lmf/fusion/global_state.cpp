@@ -338,6 +338,7 @@ GlobalState::Stacked GlobalState::stack(const std::vector<spmap::ImplicitMeasure
       if (std::find(st.touched.begin(), st.touched.end(), b.entity) == st.touched.end()) {
         st.touched.push_back(b.entity);
         st.column.push_back(t);
+        st.width.push_back(b.J.cols());
         t += b.J.cols();
       }
     }
@@ -348,16 +349,40 @@ GlobalState::Stacked GlobalState::stack(const std::vector<spmap::ImplicitMeasure
   Eigen::Index row = 0;
   for (const spmap::ImplicitMeasurement& meas : measurements) {
     const Eigen::Index r = meas.h.size();
+    const std::size_t first_block = st.blocks.size();
     for (const spmap::JacobianBlock& b : meas.blocks) {
       const auto a = static_cast<std::size_t>(
           std::find(st.touched.begin(), st.touched.end(), b.entity) - st.touched.begin());
       st.H.block(row, st.column[a], r, b.J.cols()) += b.J;
+      const bool listed = std::any_of(st.blocks.begin() + static_cast<std::ptrdiff_t>(first_block), st.blocks.end(),
+                                      [a](const Stacked::Block& k) { return k.touched == a; });
+      if (!listed) st.blocks.push_back({row, r, a});
     }
     st.R.block(row, row, r, r) = meas.R;
     st.h.segment(row, r) = meas.h;
     row += r;
   }
   return st;
+}
+
+Eigen::MatrixXd GlobalState::Stacked::times_Ht(const Eigen::MatrixXd& X) const {
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(X.rows(), H.rows());
+  for (const Block& b : blocks) {
+    const Eigen::Index c = column[b.touched];
+    const Eigen::Index d = width[b.touched];
+    out.middleCols(b.row, b.rows).noalias() += X.middleCols(c, d) * H.block(b.row, c, b.rows, d).transpose();
+  }
+  return out;
+}
+
+Eigen::MatrixXd GlobalState::Stacked::H_times(const Eigen::MatrixXd& Y) const {
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(H.rows(), Y.cols());
+  for (const Block& b : blocks) {
+    const Eigen::Index c = column[b.touched];
+    const Eigen::Index d = width[b.touched];
+    out.middleRows(b.row, b.rows).noalias() += H.block(b.row, c, b.rows, d) * Y.middleRows(c, d);
+  }
+  return out;
 }
 
 Eigen::MatrixXd GlobalState::touched_columns(const Stacked& st) const {
@@ -413,16 +438,25 @@ double GlobalState::scale_of(const Stacked& st, const Eigen::MatrixXd& P_tt) {
   return diag.size() > 0 ? diag.maxCoeff() : 0.0;
 }
 
+Eigen::MatrixXd GlobalState::touched_rows(const Stacked& st, const std::vector<Eigen::Index>& offsets,
+                                          const Eigen::MatrixXd& PHt) {
+  Eigen::MatrixXd out(st.H.cols(), PHt.cols());
+  for (std::size_t a = 0; a < st.touched.size(); ++a) {
+    out.middleRows(st.column[a], st.width[a]) = PHt.middleRows(offsets[a], st.width[a]);
+  }
+  return out;
+}
+
 Eigen::MatrixXd GlobalState::gather_PHt(const std::vector<spmap::ImplicitMeasurement>& measurements) const {
   const Stacked st = stack(measurements, "GlobalState::gather_PHt");
-  return touched_columns(st) * st.H.transpose();
+  return st.times_Ht(touched_columns(st));
 }
 
 GlobalState::Innovation GlobalState::innovation(const std::vector<spmap::ImplicitMeasurement>& measurements) const {
   const Stacked st = stack(measurements, "GlobalState::innovation");
   const Eigen::MatrixXd P_tt = touched_marginal(st, nullptr);
   Innovation out;
-  out.S = st.H * P_tt * st.H.transpose() + st.R;
+  out.S = st.H_times(st.times_Ht(P_tt)) + st.R;  // H P_tt Hᵀ + R (P_tt symmetric)
   out.S = (0.5 * (out.S + out.S.transpose())).eval();
   out.reference_scale = scale_of(st, P_tt);
   return out;
@@ -471,11 +505,15 @@ StateUpdateReport GlobalState::ekf_update(const std::vector<spmap::ImplicitMeasu
   report.rows = static_cast<int>(m_total);
   if (m_total == 0) return report;
 
-  // P Hᵀ by one product over the gathered columns; S from their touched rows.
+  // P Hᵀ from the gathered columns, block by block of H; S = H P Hᵀ + R from
+  // its touched rows (P(touched, :) Hᵀ = (P Hᵀ)(touched, :)).
   const Eigen::MatrixXd C = touched_columns(st);
   const Eigen::MatrixXd P_tt = touched_marginal(st, &C);
-  Eigen::MatrixXd PHt = C * st.H.transpose();
-  Eigen::MatrixXd S = st.H * P_tt * st.H.transpose() + st.R;
+  Eigen::MatrixXd PHt = st.times_Ht(C);
+  std::vector<Eigen::Index> offsets;
+  offsets.reserve(st.touched.size());
+  for (const EntityId id : st.touched) offsets.push_back(entity(id).offset);
+  Eigen::MatrixXd S = st.H_times(touched_rows(st, offsets, PHt)) + st.R;
   S = (0.5 * (S + S.transpose())).eval();
 
   // DESIGN §6: full-pivot Gauss–Jordan; drop the rows whose pivots fall below

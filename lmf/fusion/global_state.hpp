@@ -158,18 +158,35 @@ class GlobalState {
   void validate_measurement(const spmap::ImplicitMeasurement& m, const char* where) const;
   std::vector<Eigen::Index> rows_of(const std::vector<EntityId>& ids) const;
   // The stacked measurements over the entities they touch: H (m x t, columns
-  // in the order of `touched`), R and ĥ.
+  // in the order of `touched`), R and ĥ. H is block sparse (each measurement
+  // touches a few entities); `blocks` lists its nonzero blocks.
   struct Stacked {
+    struct Block {
+      Eigen::Index row;     // first row (the measurement's)
+      Eigen::Index rows;    // the measurement's dimension
+      std::size_t touched;  // index into `touched` / `column`
+    };
     std::vector<EntityId> touched;
     std::vector<Eigen::Index> column;  // first column of each touched entity in H
+    std::vector<Eigen::Index> width;   // its degrees of freedom
+    std::vector<Block> blocks;
     Eigen::MatrixXd H;
     Eigen::MatrixXd R;
     Eigen::VectorXd h;
+
+    // X Hᵀ for X with one column per column of H (X: r x t -> r x m), and H Y
+    // for Y with one row per column of H (Y: t x c -> m x c): products over the
+    // nonzero blocks only, never the dense H.
+    Eigen::MatrixXd times_Ht(const Eigen::MatrixXd& X) const;
+    Eigen::MatrixXd H_times(const Eigen::MatrixXd& Y) const;
   };
   Stacked stack(const std::vector<spmap::ImplicitMeasurement>& measurements, const char* where) const;
   // P(:, touched) (n x t) and P(touched, touched) (t x t).
   Eigen::MatrixXd touched_columns(const Stacked& st) const;
   Eigen::MatrixXd touched_marginal(const Stacked& st, const Eigen::MatrixXd* columns) const;
+  // P(touched, :) Hᵀ (t x m): the touched rows of P Hᵀ, in H's column order.
+  static Eigen::MatrixXd touched_rows(const Stacked& st, const std::vector<Eigen::Index>& offsets,
+                                      const Eigen::MatrixXd& PHt);
   static double scale_of(const Stacked& st, const Eigen::MatrixXd& P_tt);
   void write_marginal(const std::vector<EntityId>& ids, const Eigen::MatrixXd& M, bool accumulate);
 
