@@ -8,6 +8,7 @@
 #include <string>
 #include <utility>
 
+#include <Eigen/Cholesky>
 #include <Eigen/LU>
 
 #include "lmf/local_map/local_map_measurements.hpp"
@@ -72,14 +73,19 @@ EntityId LocalMap::add_segment_for_test(const Pose2& x_LS, double length_m, cons
 
 void LocalMap::predict(const Pose2& u) {
   if (!finite(u)) throw std::invalid_argument("LocalMap::predict: non-finite odometry increment");
+  predict(u, local_map::odometry_noise(u, config_));
+}
+
+void LocalMap::predict(const Pose2& u, const Eigen::Matrix3d& Q) {
+  if (!finite(u)) throw std::invalid_argument("LocalMap::predict: non-finite odometry increment");
+  if (!Q.allFinite()) throw std::invalid_argument("LocalMap::predict: non-finite increment covariance");
   const local_map::PredictionJacobians pj = local_map::prediction_jacobians(x_LR(), u);
   // p_R ← J_R p_R transforms P_RR and every cross term P_R,x exactly (DESIGN §4.1) ...
   map_.replace_perturbation(robot_, {{robot_, pj.J_R}});
   map_.mutable_entity(robot_).location = pj.x_LR;
-  // ... and the odometry noise, independent of the state, adds J_u Q J_uᵀ to P_RR.
+  // ... and the increment's noise, independent of the state, adds J_u Q J_uᵀ to P_RR.
   const Eigen::Index off = map_.entity(robot_).offset;
-  const Eigen::Matrix3d Q = local_map::odometry_noise(u, config_);
-  map_.mutable_covariance().block<3, 3>(off, off) += pj.J_u * Q * pj.J_u.transpose();
+  map_.mutable_covariance().block<3, 3>(off, off) += pj.J_u * (0.5 * (Q + Q.transpose())) * pj.J_u.transpose();
   span_m_ += std::hypot(u.x, u.y);
 }
 
@@ -87,11 +93,15 @@ void LocalMap::predict(const Pose2& u) {
 // The scan.
 
 ScanReport LocalMap::update(int64_t utime, const Pose2& odometry, const std::vector<ObservedSegment>& observations) {
+  return update_with(utime, odometry, observations, std::nullopt, ScanReport{});
+}
+
+ScanReport LocalMap::update_with(int64_t utime, const Pose2& odometry, const std::vector<ObservedSegment>& observations,
+                                 const std::optional<Motion>& motion, ScanReport report) {
   if (!finite(odometry)) {
     throw std::invalid_argument("LocalMap::update: non-finite odometry pose in the scan at utime " +
                                 std::to_string(utime));
   }
-  ScanReport report;
   report.utime = utime;
   report.observations = static_cast<int>(observations.size());
   report.map_segments_before = static_cast<int>(num_segments());
@@ -113,8 +123,13 @@ ScanReport LocalMap::update(int64_t utime, const Pose2& odometry, const std::vec
     }
   }
 
-  // Step 1: predict with the odometry increment since the previous scan.
-  if (odometry_reference_) predict(between(*odometry_reference_, odometry));
+  // Step 1: predict with the odometry increment since the previous scan (or
+  // the scan match that refined it).
+  if (motion) {
+    predict(motion->u, motion->Q);
+  } else if (odometry_reference_) {
+    predict(between(*odometry_reference_, odometry));
+  }
   odometry_reference_ = odometry;
   if (!first_utime_) first_utime_ = utime;
   last_utime_ = utime;
@@ -143,7 +158,27 @@ ScanReport LocalMap::update(int64_t utime, const Pose2& odometry, const std::vec
 }
 
 ScanReport LocalMap::process_scan(const LaserScan& scan) {
-  return update(scan.utime, scan.odometry, extract_segments(scan, config_.extraction));  // step 2
+  const ScanMatcherConfig& matching = config_.scan_matching;
+  ScanReport report;
+  std::optional<Motion> motion;
+  if (matching.enabled && reference_scan_ && odometry_reference_ && finite(scan.odometry)) {
+    // Step 1 refined: the odometry increment as the prior of a scan match.
+    const Pose2 u = between(*odometry_reference_, scan.odometry);
+    const Eigen::Matrix3d Q = local_map::odometry_noise(u, config_);
+    // (Q is singular only for a standing robot with zero noise floors: no prior, no match.)
+    const bool prior_ok = Eigen::LLT<Eigen::Matrix3d>(Q).info() == Eigen::Success;
+    const std::optional<ScanMatch> match =
+        prior_ok ? match_scans(*reference_scan_, scan_points(scan, matching), u, Q, matching) : std::nullopt;
+    report.scan_match_tried = true;
+    if (match) {
+      report.scan_matched = true;
+      report.scan_match_points = match->correspondences;
+      motion = Motion{match->x_AB, match->covariance};
+    }
+  }
+  report = update_with(scan.utime, scan.odometry, extract_segments(scan, config_.extraction), motion, report);  // step 2
+  if (matching.enabled) reference_scan_ = ReferenceScan::from(scan, matching);
+  return report;
 }
 
 // ---------------------------------------------------------------------------
@@ -520,8 +555,10 @@ void LocalMap::resume(int64_t seq, int64_t origin_utime, const Pose2& origin_odo
   reset();
   first_utime_ = origin_utime;
   last_utime_ = origin_utime;
-  // ... with the odometry reference of that scan: update() predicts from it.
+  // ... with the odometry reference of that scan: update() predicts from it
+  // (that scan's points are gone: no scan match for the first scan).
   odometry_reference_ = origin_odometry;
+  reference_scan_.reset();
 }
 
 }  // namespace lmf

@@ -41,6 +41,7 @@
 #include "lmf/local_map/local_map_snapshot.hpp"
 #include "lmf/scan/laser_scan.hpp"
 #include "lmf/scan/observed_segment.hpp"
+#include "lmf/scan/scan_matcher.hpp"
 #include "lmf/spmap/covariance_check.hpp"
 #include "lmf/spmap/ekf.hpp"
 #include "lmf/spmap/stochastic_map.hpp"
@@ -53,6 +54,12 @@ struct ScanReport {
   int observations = 0;           // observations given (after extraction)
   int observations_rejected = 0;  // skipped as malformed (non-finite, bad covariance, length <= 0)
   int map_segments_before = 0;
+
+  // Step 1 (LocalMapConfig::scan_matching, process_scan only): whether the scan
+  // was matched against the previous one and the prediction used the match.
+  bool scan_match_tried = false;
+  bool scan_matched = false;
+  int scan_match_points = 0;  // points matched (when scan_matched)
 
   // Step 3: every (observation, map segment) combination is a tried pairing; the
   // overlap test runs first, then the individual chi2(2) test on those that overlap.
@@ -104,8 +111,12 @@ class LocalMap {
   ScanReport process_scan(const LaserScan& scan);
 
   // Step 1 alone, with the odometry increment u = between(odom_prev, odom_now)
-  // (m, rad). update() calls it; public for tests and experiments.
+  // (m, rad) and the odometry noise model. update() calls it; public for tests
+  // and experiments.
   void predict(const Pose2& u);
+  // The same with an increment known better than the odometry's (a scan match):
+  // Q is the covariance of its perturbation p_u (u_true = u ⊕ p_u).
+  void predict(const Pose2& u, const Eigen::Matrix3d& Q);
 
   // Step 10: true when span_m() > ship_distance_m or the map holds more than max_segments.
   bool should_ship() const;
@@ -159,6 +170,14 @@ class LocalMap {
     spmap::ImplicitMeasurement measurement;
   };
 
+  // An increment with its covariance, replacing the odometry's in step 1.
+  struct Motion {
+    Pose2 u;
+    Eigen::Matrix3d Q;
+  };
+  ScanReport update_with(int64_t utime, const Pose2& odometry, const std::vector<ObservedSegment>& observations,
+                         const std::optional<Motion>& motion, ScanReport report);
+
   std::vector<Candidate> pair_observations(const std::vector<ObservedSegment>& observations,
                                            ScanReport& report) const;
   std::vector<Pairing> joint_update(std::vector<Candidate> candidates, ScanReport& report);
@@ -184,6 +203,7 @@ class LocalMap {
   spmap::StochasticMap map_;
   spmap::EntityId robot_ = 0;
   std::optional<Pose2> odometry_reference_;
+  std::optional<ReferenceScan> reference_scan_;  // the previous scan (scan_matching.enabled)
   std::optional<int64_t> first_utime_;
   int64_t last_utime_ = 0;
   double span_m_ = 0.0;

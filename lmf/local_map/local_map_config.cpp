@@ -55,6 +55,7 @@ void LocalMapConfig::validate() const {
   require(finite_nonnegative(covariance_tolerance), "covariance_tolerance", covariance_tolerance,
           "finite and >= 0");
   extraction.validate();
+  scan_matching.validate();
 }
 
 }  // namespace lmf

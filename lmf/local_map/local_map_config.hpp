@@ -4,6 +4,7 @@
 
 #include <cstddef>
 
+#include "lmf/scan/scan_matcher.hpp"
 #include "lmf/scan/segment_extraction.hpp"
 
 namespace lmf {
@@ -90,6 +91,12 @@ struct LocalMapConfig {
 
   // Segment extraction used by LocalMap::process_scan (step 2).
   ExtractionConfig extraction;
+
+  // Step 1 refined (beyond the paper; off by default): LocalMap::process_scan
+  // matches each scan against the previous one with the odometry increment as
+  // prior (scan_matcher.hpp) and predicts with the match and its covariance;
+  // when the match fails it predicts with the odometry as usual.
+  ScanMatcherConfig scan_matching;
 
   // Throws std::invalid_argument naming the first invalid field and its value.
   void validate() const;

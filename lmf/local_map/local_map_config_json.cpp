@@ -4,6 +4,7 @@
 #include <string>
 
 #include "lmf/scan/extraction_config_json.hpp"
+#include "lmf/scan/scan_matcher_config_json.hpp"
 
 namespace lmf {
 
@@ -31,6 +32,9 @@ void read_local_map_config(io::JsonReader& reader, LocalMapConfig& config) {
   reader.read("covariance_check_interval", config.covariance_check_interval);
   if (io::JsonReader* extraction = reader.optional_section("extraction")) {
     read_extraction_config(*extraction, config.extraction);
+  }
+  if (io::JsonReader* scan_matching = reader.optional_section("scan_matching")) {
+    read_scan_matcher_config(*scan_matching, config.scan_matching);
   }
 }
 

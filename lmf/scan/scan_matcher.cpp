@@ -1,0 +1,219 @@
+#include "lmf/scan/scan_matcher.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
+#include "lmf/spmap/ekf.hpp"
+
+namespace lmf {
+namespace {
+
+void require(bool ok, const char* field, double value, const char* requirement) {
+  if (ok) return;
+  std::ostringstream msg;
+  msg << "ScanMatcherConfig." << field << " = " << value << " is invalid: it must be " << requirement;
+  throw std::invalid_argument(msg.str());
+}
+
+bool usable_range(const LaserScan& scan, std::size_t i, const ScanMatcherConfig& c) {
+  const double r = scan.ranges_m[i];
+  const double no_return = scan.max_range_m - c.no_return_margin_m;
+  return std::isfinite(r) && r >= c.min_range_m && r <= c.max_range_m && (scan.max_range_m <= 0.0 || r < no_return);
+}
+
+// x ⊙ b: point b of scan B in A's frame.
+Eigen::Vector2d transform(const Pose2& x, const Eigen::Vector2d& b) {
+  const double c = std::cos(x.phi);
+  const double s = std::sin(x.phi);
+  return {x.x + c * b.x() - s * b.y(), x.y + s * b.x() + c * b.y()};
+}
+
+// The nearest reference point with a normal to q (in A's frame) among the
+// beams around q's bearing, within `gate` (m); -1 when none.
+int correspondence(const ReferenceScan& A, const Eigen::Vector2d& q, double gate) {
+  const auto beams = static_cast<long>(A.point_of_beam.size());
+  if (beams == 0 || A.angle_increment_rad == 0.0) return -1;
+  const double range = q.norm();
+  const double bearing = std::atan2(q.y(), q.x());
+  const long centre = std::lround((bearing - A.angle_min_rad) / A.angle_increment_rad);
+  const double arc = std::max(range * std::abs(A.angle_increment_rad), 1e-3);
+  const long half_width = std::clamp(static_cast<long>(std::ceil(gate / arc)), 1L, 30L);
+  int best = -1;
+  double best_d2 = gate * gate;
+  for (long k = std::max(0L, centre - half_width); k <= std::min(beams - 1, centre + half_width); ++k) {
+    const int j = A.point_of_beam[static_cast<std::size_t>(k)];
+    if (j < 0) continue;
+    const double d2 = (A.points[static_cast<std::size_t>(j)] - q).squaredNorm();
+    if (d2 < best_d2) {
+      best_d2 = d2;
+      best = j;
+    }
+  }
+  return best;
+}
+
+}  // namespace
+
+void ScanMatcherConfig::validate() const {
+  require(std::isfinite(min_range_m) && min_range_m >= 0.0, "min_range_m", min_range_m, "finite and >= 0");
+  require(std::isfinite(max_range_m) && max_range_m > min_range_m, "max_range_m", max_range_m,
+          "finite and > min_range_m");
+  require(std::isfinite(no_return_margin_m) && no_return_margin_m >= 0.0, "no_return_margin_m", no_return_margin_m,
+          "finite and >= 0");
+  require(std::isfinite(normal_radius_m) && normal_radius_m > 0.0, "normal_radius_m", normal_radius_m,
+          "finite and > 0");
+  require(max_normal_flatness > 0.0 && max_normal_flatness <= 1.0, "max_normal_flatness", max_normal_flatness,
+          "in (0, 1]");
+  require(std::isfinite(last_gate_m) && last_gate_m > 0.0, "last_gate_m", last_gate_m, "finite and > 0");
+  require(std::isfinite(first_gate_m) && first_gate_m >= last_gate_m, "first_gate_m", first_gate_m,
+          "finite and >= last_gate_m");
+  require(max_iterations >= 1, "max_iterations", max_iterations, ">= 1");
+  require(min_correspondences >= 3, "min_correspondences", min_correspondences, ">= 3");
+  require(std::isfinite(point_sigma_m) && point_sigma_m > 0.0, "point_sigma_m", point_sigma_m, "finite and > 0");
+  require(std::isfinite(huber_k) && huber_k > 0.0, "huber_k", huber_k, "finite and > 0");
+  require(std::isfinite(max_independent_points) && max_independent_points > 0.0, "max_independent_points",
+          max_independent_points, "finite and > 0");
+  require(prior_alpha > 0.0 && prior_alpha < 1.0, "prior_alpha", prior_alpha, "in (0, 1)");
+}
+
+ReferenceScan ReferenceScan::from(const LaserScan& scan, const ScanMatcherConfig& config) {
+  config.validate();
+  ReferenceScan A;
+  A.angle_min_rad = scan.angle_min_rad;
+  A.angle_increment_rad = scan.angle_increment_rad;
+  const std::size_t n = scan.ranges_m.size();
+  std::vector<Eigen::Vector2d> beam_points(n);
+  std::vector<bool> valid(n, false);
+  for (std::size_t i = 0; i < n; ++i) {
+    valid[i] = usable_range(scan, i, config);
+    if (valid[i]) beam_points[i] = scan.beam_point(i);
+  }
+  A.point_of_beam.assign(n, -1);
+  constexpr std::size_t kMaxNeighbourBeams = 10;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!valid[i]) continue;
+    // Neighbours in beam order, contiguous and within normal_radius_m of point i.
+    std::size_t lo = i;
+    std::size_t hi = i;
+    while (lo > 0 && i - lo < kMaxNeighbourBeams && valid[lo - 1] &&
+           (beam_points[lo - 1] - beam_points[i]).norm() <= config.normal_radius_m) {
+      --lo;
+    }
+    while (hi + 1 < n && hi - i < kMaxNeighbourBeams && valid[hi + 1] &&
+           (beam_points[hi + 1] - beam_points[i]).norm() <= config.normal_radius_m) {
+      ++hi;
+    }
+    if (hi - lo + 1 < 4) continue;
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (std::size_t k = lo; k <= hi; ++k) mean += beam_points[k];
+    mean /= static_cast<double>(hi - lo + 1);
+    Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
+    for (std::size_t k = lo; k <= hi; ++k) scatter += (beam_points[k] - mean) * (beam_points[k] - mean).transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(scatter);
+    if (!(es.eigenvalues()(0) <= config.max_normal_flatness * es.eigenvalues()(1))) continue;
+    Eigen::Vector2d normal = es.eigenvectors().col(0);
+    if (normal.dot(beam_points[i]) > 0.0) normal = -normal;  // towards the sensor
+    A.point_of_beam[i] = static_cast<int>(A.points.size());
+    A.points.push_back(beam_points[i]);
+    A.normals.push_back(normal);
+  }
+  return A;
+}
+
+std::vector<Eigen::Vector2d> scan_points(const LaserScan& scan, const ScanMatcherConfig& config) {
+  std::vector<Eigen::Vector2d> points;
+  points.reserve(scan.ranges_m.size());
+  for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {
+    if (usable_range(scan, i, config)) points.push_back(scan.beam_point(i));
+  }
+  return points;
+}
+
+Eigen::RowVector3d point_to_line_jacobian(const Pose2& x, const Eigen::Vector2d& b, const Eigen::Vector2d& n) {
+  // x ⊕ δ ⊙ b = t + R(φ) δ_xy + R(φ + δφ) b, so ∂/∂δ_xy = R(φ), ∂/∂δφ = R(φ) (−b_y, b_x).
+  const double c = std::cos(x.phi);
+  const double s = std::sin(x.phi);
+  Eigen::Matrix2d R;
+  R << c, -s, s, c;
+  const Eigen::RowVector2d nR = n.transpose() * R;
+  return {nR(0), nR(1), nR.dot(Eigen::Vector2d(-b.y(), b.x()))};
+}
+
+Eigen::Matrix3d prior_residual_jacobian(const Pose2& u_hat, const Pose2& x) {
+  // between(û, x ⊕ δ) = between(û, x) ⊕ δ.
+  return J2compose(between(u_hat, x), Pose2());
+}
+
+std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& B,
+                                     const Pose2& u_hat, const Eigen::Matrix3d& Q, const ScanMatcherConfig& config) {
+  config.validate();
+  if (!std::isfinite(u_hat.x) || !std::isfinite(u_hat.y) || !std::isfinite(u_hat.phi)) {
+    throw std::invalid_argument("match_scans: non-finite odometry increment");
+  }
+  const Eigen::LLT<Eigen::Matrix3d> Q_llt(Q);
+  if (!Q.allFinite() || !Q.isApprox(Q.transpose(), 1e-9) || Q_llt.info() != Eigen::Success) {
+    throw std::invalid_argument("match_scans: the odometry covariance Q must be symmetric positive definite");
+  }
+  const Eigen::Matrix3d Q_inv = Q_llt.solve(Eigen::Matrix3d::Identity());
+  const double sigma2 = config.point_sigma_m * config.point_sigma_m;
+  const double huber = config.huber_k * config.point_sigma_m;
+  const int coarse_iterations = std::max(1, config.max_iterations / 2);
+
+  ScanMatch out;
+  Pose2 x = u_hat;
+  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+  for (int it = 0; it < config.max_iterations; ++it) {
+    const double progress = std::min(1.0, static_cast<double>(it) / coarse_iterations);
+    const double gate = config.first_gate_m + (config.last_gate_m - config.first_gate_m) * progress;
+    Eigen::Matrix3d A_laser = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d g_laser = Eigen::Vector3d::Zero();
+    int matched = 0;
+    double sum_e2 = 0.0;
+    for (const Eigen::Vector2d& b : B) {
+      const Eigen::Vector2d q = transform(x, b);
+      const int j = correspondence(A, q, gate);
+      if (j < 0) continue;
+      const Eigen::Vector2d& n = A.normals[static_cast<std::size_t>(j)];
+      const double e = n.dot(q - A.points[static_cast<std::size_t>(j)]);
+      const Eigen::RowVector3d J = point_to_line_jacobian(x, b, n);
+      const double w = std::abs(e) <= huber ? 1.0 : huber / std::abs(e);
+      A_laser.noalias() += w * J.transpose() * J;
+      g_laser.noalias() += w * e * J.transpose();
+      sum_e2 += e * e;
+      ++matched;
+    }
+    out.correspondences = matched;
+    out.iterations = it + 1;
+    if (matched < config.min_correspondences) return std::nullopt;
+    out.rms_m = std::sqrt(sum_e2 / matched);
+    // At most max_independent_points effective points (see the header).
+    const double laser_weight = std::min(1.0, config.max_independent_points / matched) / sigma2;
+    const Pose2 r_pose = between(u_hat, x);
+    const Eigen::Vector3d r(r_pose.x, r_pose.y, wrap_angle(r_pose.phi));
+    const Eigen::Matrix3d J_r = prior_residual_jacobian(u_hat, x);
+    H = laser_weight * A_laser + J_r.transpose() * Q_inv * J_r;
+    const Eigen::Vector3d gradient = laser_weight * g_laser + J_r.transpose() * Q_inv * r;
+    const Eigen::Vector3d delta = -H.ldlt().solve(gradient);
+    if (!delta.allFinite()) return std::nullopt;
+    x = compose(x, Pose2(delta(0), delta(1), delta(2)));
+    if (progress >= 1.0 && delta.head<2>().norm() < 1e-5 && std::abs(delta(2)) < 1e-6) break;
+  }
+  const Pose2 r_pose = between(u_hat, x);
+  const Eigen::Vector3d r(r_pose.x, r_pose.y, wrap_angle(r_pose.phi));
+  out.prior_distance2 = r.dot(Q_inv * r);
+  if (!(out.prior_distance2 <= spmap::chi2_threshold(3, config.prior_alpha))) return std::nullopt;
+  const Eigen::LLT<Eigen::Matrix3d> H_llt(H);
+  if (H_llt.info() != Eigen::Success) return std::nullopt;
+  out.x_AB = x;
+  out.covariance = H_llt.solve(Eigen::Matrix3d::Identity());
+  out.covariance = (0.5 * (out.covariance + out.covariance.transpose())).eval();
+  return out;
+}
+
+}  // namespace lmf

@@ -1,0 +1,22 @@
+#include "lmf/scan/scan_matcher_config_json.hpp"
+
+namespace lmf {
+
+void read_scan_matcher_config(io::JsonReader& reader, ScanMatcherConfig& config) {
+  reader.read("enabled", config.enabled);
+  reader.read("min_range_m", config.min_range_m, io::non_negative());
+  reader.read("max_range_m", config.max_range_m, io::positive());
+  reader.read("no_return_margin_m", config.no_return_margin_m, io::non_negative());
+  reader.read("normal_radius_m", config.normal_radius_m, io::positive());
+  reader.read("max_normal_flatness", config.max_normal_flatness, io::in_closed(0.0, 1.0));
+  reader.read("first_gate_m", config.first_gate_m, io::positive());
+  reader.read("last_gate_m", config.last_gate_m, io::positive());
+  reader.read("max_iterations", config.max_iterations, io::at_least(1.0));
+  reader.read("min_correspondences", config.min_correspondences, io::at_least(3.0));
+  reader.read("point_sigma_m", config.point_sigma_m, io::positive());
+  reader.read("huber_k", config.huber_k, io::positive());
+  reader.read("max_independent_points", config.max_independent_points, io::positive());
+  reader.read("prior_alpha", config.prior_alpha, io::in_open(0.0, 1.0));
+}
+
+}  // namespace lmf
