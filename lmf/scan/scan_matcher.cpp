@@ -8,6 +8,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 
 #include "lmf/spmap/ekf.hpp"
 
@@ -43,7 +44,7 @@ int correspondence(const ReferenceScan& A, const Eigen::Vector2d& q, double gate
   const double bearing = std::atan2(q.y(), q.x());
   const long centre = std::lround((bearing - A.angle_min_rad) / A.angle_increment_rad);
   const double arc = std::max(range * std::abs(A.angle_increment_rad), 1e-3);
-  const long half_width = std::clamp(static_cast<long>(std::ceil(gate / arc)), 1L, 30L);
+  const long half_width = std::clamp(static_cast<long>(std::ceil(gate / arc)), 1L, 20L);
   int best = -1;
   double best_d2 = gate * gate;
   for (long k = std::max(0L, centre - half_width); k <= std::min(beams - 1, centre + half_width); ++k) {
@@ -79,6 +80,11 @@ void ScanMatcherConfig::validate() const {
   require(std::isfinite(huber_k) && huber_k > 0.0, "huber_k", huber_k, "finite and > 0");
   require(std::isfinite(max_independent_points) && max_independent_points > 0.0, "max_independent_points",
           max_independent_points, "finite and > 0");
+  require(std::isfinite(model_noise_m) && model_noise_m >= 0.0, "model_noise_m", model_noise_m, "finite and >= 0");
+  require(std::isfinite(model_noise_rad) && model_noise_rad >= 0.0, "model_noise_rad", model_noise_rad,
+          "finite and >= 0");
+  require(std::isfinite(model_noise_per_rad) && model_noise_per_rad >= 0.0, "model_noise_per_rad",
+          model_noise_per_rad, "finite and >= 0");
   require(prior_alpha > 0.0 && prior_alpha < 1.0, "prior_alpha", prior_alpha, "in (0, 1)");
 }
 
@@ -163,14 +169,17 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
   const Eigen::Matrix3d Q_inv = Q_llt.solve(Eigen::Matrix3d::Identity());
   const double sigma2 = config.point_sigma_m * config.point_sigma_m;
   const double huber = config.huber_k * config.point_sigma_m;
-  const int coarse_iterations = std::max(1, config.max_iterations / 2);
+  const double turn_noise = config.model_noise_per_rad * std::abs(u_hat.phi);
+  const Eigen::Matrix3d C_m =
+      Eigen::Vector3d(config.model_noise_m * config.model_noise_m, config.model_noise_m * config.model_noise_m,
+                      config.model_noise_rad * config.model_noise_rad + turn_noise * turn_noise)
+          .asDiagonal();
 
   ScanMatch out;
   Pose2 x = u_hat;
   Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+  double gate = config.first_gate_m;
   for (int it = 0; it < config.max_iterations; ++it) {
-    const double progress = std::min(1.0, static_cast<double>(it) / coarse_iterations);
-    const double gate = config.first_gate_m + (config.last_gate_m - config.first_gate_m) * progress;
     Eigen::Matrix3d A_laser = Eigen::Matrix3d::Zero();
     Eigen::Vector3d g_laser = Eigen::Vector3d::Zero();
     int matched = 0;
@@ -192,17 +201,26 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
     out.iterations = it + 1;
     if (matched < config.min_correspondences) return std::nullopt;
     out.rms_m = std::sqrt(sum_e2 / matched);
-    // At most max_independent_points effective points (see the header).
+    // Λ at most max_independent_points effective points, then widened by C_m:
+    // Λ' = (I + Λ C_m)⁻¹ Λ, and the gradient of the widened term (I + Λ C_m)⁻¹ g.
     const double laser_weight = std::min(1.0, config.max_independent_points / matched) / sigma2;
+    const Eigen::Matrix3d Lambda = laser_weight * A_laser;
+    const Eigen::Matrix3d widen = (Eigen::Matrix3d::Identity() + Lambda * C_m).inverse();
+    Eigen::Matrix3d Lambda_widened = widen * Lambda;
+    Lambda_widened = (0.5 * (Lambda_widened + Lambda_widened.transpose())).eval();
     const Pose2 r_pose = between(u_hat, x);
     const Eigen::Vector3d r(r_pose.x, r_pose.y, wrap_angle(r_pose.phi));
     const Eigen::Matrix3d J_r = prior_residual_jacobian(u_hat, x);
-    H = laser_weight * A_laser + J_r.transpose() * Q_inv * J_r;
-    const Eigen::Vector3d gradient = laser_weight * g_laser + J_r.transpose() * Q_inv * r;
+    H = Lambda_widened + J_r.transpose() * Q_inv * J_r;
+    const Eigen::Vector3d gradient = widen * (laser_weight * g_laser) + J_r.transpose() * Q_inv * r;
     const Eigen::Vector3d delta = -H.ldlt().solve(gradient);
     if (!delta.allFinite()) return std::nullopt;
     x = compose(x, Pose2(delta(0), delta(1), delta(2)));
-    if (progress >= 1.0 && delta.head<2>().norm() < 1e-5 && std::abs(delta(2)) < 1e-6) break;
+    const bool settled = delta.head<2>().norm() < 1e-4 && std::abs(delta(2)) < 1e-5;
+    if (settled) {
+      if (gate <= config.last_gate_m) break;
+      gate = std::max(config.last_gate_m, 0.5 * gate);
+    }
   }
   const Pose2 r_pose = between(u_hat, x);
   const Eigen::Vector3d r(r_pose.x, r_pose.y, wrap_angle(r_pose.phi));

@@ -9,14 +9,19 @@
 //   B  the current scan, points b_i;
 //   u  the increment x_AB (pose of B seen from A), û its odometry estimate with
 //      perturbation p_u (u = û ⊕ p_u, p_u ~ N(0, Q)), as LocalMap::predict uses.
-// The estimate minimises
-//   Σ_i w_i (n_jᵀ (x ⊙ b_i − a_j))² / σ² + r(x)ᵀ Q⁻¹ r(x),  r(x) = between(û, x),
-// over x by Gauss–Newton on x ← x ⊕ δ, with correspondences j(i) re-found by
-// projection onto A's beams each iteration and Huber weights w_i. The result's
-// covariance is that of δ at the optimum: (Jᵀ W J / σ² + J_rᵀ Q⁻¹ J_r)⁻¹, the
-// laser part first scaled down to `max_independent_points` effective points
-// (neighbouring points' errors are correlated and the segment observations use
-// the same points again, so the raw point count would make it overconfident).
+// The laser term is Λ = s Σ_i w_i J_iᵀ J_i / σ² (J_i the Jacobian of the
+// point-to-line distance e_i = n_jᵀ (x ⊙ b_i − a_j) with respect to δ in
+// x ⊕ δ, w_i Huber weights, correspondences j(i) re-found by projection onto
+// A's beams each iteration), scaled by s to at most `max_independent_points`
+// effective points: neighbouring points' errors are correlated and the segment
+// observations use the same points again, so the raw count would make it
+// overconfident. Λ⁻¹ is then widened by a model noise C_m (walls are not
+// perfect lines, the scans not instantaneous), Λ' = (Λ⁻¹ + C_m)⁻¹ = (I + Λ C_m)⁻¹ Λ,
+// which stays defined where Λ is singular (a corridor). Gauss–Newton on
+// x ← x ⊕ δ then solves the maximum a posteriori problem of that laser term and
+// the prior r(x) = between(û, x) ~ N(0, Q); the result's covariance is
+// (Λ' + J_rᵀ Q⁻¹ J_r)⁻¹ at the optimum. The correspondence gate starts at
+// first_gate_m and halves each time the estimate settles, down to last_gate_m.
 //
 // Pure functions, thread-safe.
 #pragma once
@@ -44,8 +49,8 @@ struct ScanMatcherConfig {
   // below max_normal_flatness); points without one are not used.
   double normal_radius_m = 0.5;
   double max_normal_flatness = 0.1;
-  // Correspondence gate (m): from first (coarse, odometry-sized errors) down to
-  // last over the first half of the iterations.
+  // Correspondence gate (m): from first (coarse, odometry-sized errors), halved
+  // each time the estimate settles, down to last.
   double first_gate_m = 1.0;
   double last_gate_m = 0.25;
   int max_iterations = 30;
@@ -54,8 +59,14 @@ struct ScanMatcherConfig {
   // Std of one point's distance to its line (m), and the Huber threshold in units of it.
   double point_sigma_m = 0.03;
   double huber_k = 2.0;
-  // The laser information is scaled to at most this many independent points.
+  // The laser information is scaled to at most this many independent points ...
   double max_independent_points = 20.0;
+  // ... and its covariance widened by this model noise: std of x and y (m), of
+  // the angle (rad), and of the angle per radian turned (a scan taken while
+  // turning is skewed by the turn during the sweep), in quadrature.
+  double model_noise_m = 0.01;
+  double model_noise_rad = 0.003;
+  double model_noise_per_rad = 0.03;
   // The estimate is rejected (odometry alone) when its Mahalanobis distance to
   // the odometry increment, r(x)ᵀ Q⁻¹ r(x), exceeds chi2inv(1 - prior_alpha, 3).
   double prior_alpha = 1e-4;

@@ -1,0 +1,157 @@
+// lmf-scan-match: the scan matcher of the local map's step 1 (scan_matcher.hpp)
+// on every pair of consecutive scans of a CARMEN log, scored against a
+// reference trajectory: increment errors of the odometry and of the match, and
+// the consistency of both (NEES of the increment perturbation, mean 3 when the
+// covariance is right).
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <iostream>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <Eigen/Cholesky>
+#include <boost/math/distributions/chi_squared.hpp>
+#include <boost/program_options.hpp>
+
+#include "lmf/io/carmen.hpp"
+#include "lmf/io/trajectory.hpp"
+#include "lmf/local_map/local_map_config_json.hpp"
+#include "lmf/local_map/local_map_measurements.hpp"
+#include "lmf/scan/scan_matcher.hpp"
+
+namespace po = boost::program_options;
+
+namespace {
+
+// Error statistics of one estimator of the increments.
+struct Errors {
+  std::vector<double> translation_m;
+  std::vector<double> rotation_rad;
+  std::vector<double> nees;
+
+  void add(const lmf::Pose2& estimate, const Eigen::Matrix3d& covariance, const lmf::Pose2& truth) {
+    // The perturbation p with truth = estimate ⊕ p.
+    const lmf::Pose2 p = lmf::between(estimate, truth);
+    const Eigen::Vector3d e(p.x, p.y, lmf::wrap_angle(p.phi));
+    translation_m.push_back(e.head<2>().norm());
+    rotation_rad.push_back(std::abs(e(2)));
+    nees.push_back(e.dot(covariance.ldlt().solve(e)));
+  }
+};
+
+double rms(const std::vector<double>& v) {
+  double s = 0.0;
+  for (const double x : v) s += x * x;
+  return v.empty() ? 0.0 : std::sqrt(s / static_cast<double>(v.size()));
+}
+
+double mean(const std::vector<double>& v) {
+  double s = 0.0;
+  for (const double x : v) s += x;
+  return v.empty() ? 0.0 : s / static_cast<double>(v.size());
+}
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[static_cast<std::size_t>(q * static_cast<double>(v.size() - 1))];
+}
+
+void print(const char* name, const Errors& e, double chi2_95) {
+  const auto inside = std::count_if(e.nees.begin(), e.nees.end(), [&](double d) { return d <= chi2_95; });
+  std::printf("%-9s %6zu  %8.4f  %8.3f  %9.2f  %9.1f  %7.0f%%\n", name, e.nees.size(), rms(e.translation_m),
+              rms(e.rotation_rad) * 180.0 / std::numbers::pi, mean(e.nees), quantile(e.nees, 0.5) * 1.0,
+              e.nees.empty() ? 0.0 : 100.0 * static_cast<double>(inside) / static_cast<double>(e.nees.size()));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string log_file;
+  std::string reference_file;
+  std::string config_file;
+  bool per_scan = false;
+  po::options_description options(
+      "lmf-scan-match: match every scan of a CARMEN log against the previous one (the local map's\n"
+      "step 1 with local_map.scan_matching, odometry increment as prior) and score the increments of\n"
+      "the odometry and of the matches against the reference: RMS errors, NEES (3 when the\n"
+      "covariance is right) and the share inside its 95 % bound, and the time per match.\nOptions");
+  options.add_options()("help,h", "print this help")(
+      "log", po::value(&log_file)->required(), "CARMEN log (plain or .gz)")(
+      "gt", po::value(&reference_file)->required(), "reference trajectory, one `index t x y theta` line per scan")(
+      "config", po::value(&config_file),
+      "JSON LocalMapConfig (odometry noise and the scan_matching section; matching is on regardless)")(
+      "per-scan", po::bool_switch(&per_scan),
+      "one line per increment: k, odometry and match errors (m, deg), match NEES, matched points, RMS (m)");
+  try {
+    po::variables_map vm;
+    po::store(po::parse_command_line(argc, argv, options), vm);
+    if (vm.count("help") != 0u) {
+      std::cout << options << "\n";
+      return 0;
+    }
+    po::notify(vm);
+  } catch (const po::error& e) {
+    std::cerr << "lmf-scan-match: " << e.what() << "\nTry lmf-scan-match --help\n";
+    return 2;
+  }
+  try {
+    lmf::LocalMapConfig config = config_file.empty() ? lmf::LocalMapConfig{} : lmf::load_local_map_config(config_file);
+    config.scan_matching.enabled = true;
+    const lmf::ScanMatcherConfig& matching = config.scan_matching;
+    const lmf::io::CarmenLog log = lmf::io::read_carmen_log(log_file);
+    const std::vector<lmf::StampedPose> reference = lmf::io::read_trajectory(reference_file);
+    if (reference.size() != log.scans.size()) {
+      std::cerr << "lmf-scan-match: " << reference_file << " has " << reference.size() << " poses, the log has "
+                << log.scans.size() << " scans (one per scan expected)\n";
+      return 1;
+    }
+    Errors odometry;
+    Errors matched;
+    Errors odometry_where_matched;
+    std::vector<double> micros;
+    int failed = 0;
+    for (std::size_t k = 1; k < log.scans.size(); ++k) {
+      const lmf::LaserScan& a = log.scans[k - 1];
+      const lmf::LaserScan& b = log.scans[k];
+      const lmf::Pose2 u = lmf::between(a.odometry, b.odometry);
+      const Eigen::Matrix3d Q = lmf::local_map::odometry_noise(u, config);
+      const lmf::Pose2 truth = lmf::between(reference[k - 1].pose, reference[k].pose);
+      odometry.add(u, Q, truth);
+      const auto t0 = std::chrono::steady_clock::now();
+      const lmf::ReferenceScan A = lmf::ReferenceScan::from(a, matching);
+      const std::optional<lmf::ScanMatch> m = lmf::match_scans(A, lmf::scan_points(b, matching), u, Q, matching);
+      micros.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+      if (!m) {
+        ++failed;
+        continue;
+      }
+      matched.add(m->x_AB, m->covariance, truth);
+      odometry_where_matched.add(u, Q, truth);
+      if (per_scan) {
+        std::printf("%4zu  odometry %.3f m %.2f deg  match %.3f m %.2f deg  NEES %.1f  points %d  rms %.3f m\n", k,
+                    odometry.translation_m.back(), odometry.rotation_rad.back() * 180.0 / std::numbers::pi,
+                    matched.translation_m.back(), matched.rotation_rad.back() * 180.0 / std::numbers::pi,
+                    matched.nees.back(), m->correspondences, m->rms_m);
+      }
+    }
+    const double chi2_95 = boost::math::quantile(boost::math::chi_squared_distribution<double>(3.0), 0.95);
+    std::printf("%s: %zu increments, %zu matched, %d fell back to odometry\n", log_file.c_str(),
+                log.scans.size() - 1, matched.nees.size(), failed);
+    std::printf("%-9s %6s  %8s  %8s  %9s  %9s  %8s\n", "", "n", "RMS m", "RMS deg", "NEES mean", "NEES p50",
+                "<= 95%");
+    print("odometry", odometry, chi2_95);
+    print("  (same)", odometry_where_matched, chi2_95);
+    print("match", matched, chi2_95);
+    std::printf("time per match (reference preparation + matching): p50 %.0f us, p99 %.0f us, max %.0f us\n",
+                quantile(micros, 0.5), quantile(micros, 0.99), quantile(micros, 1.0));
+  } catch (const std::exception& e) {
+    std::cerr << "lmf-scan-match: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}
