@@ -94,6 +94,29 @@ class Chi2Table {
 // A relation known perfectly (S ≈ 0) passes only if its innovation is ≈ 0.
 constexpr double kPerfectInnovationTolerance = 1e-6;
 
+// The rows the careful inversion dropped from S are determined by the kept
+// ones: given them, their variance is below the pivot threshold. Each such
+// row's innovation given the kept rows, ν_d − S_dK S_KK⁻¹ ν_K, must then be ≈ 0
+// (within what a variance at the threshold allows at the chi2(1) bound):
+// otherwise the measurement contradicts a relation the map already knows
+// exactly (a pairing 90° off two segments the local map made perpendicular),
+// and dropping the row would accept it silently.
+bool dropped_rows_consistent(const Eigen::MatrixXd& S, const Eigen::VectorXd& nu, const spmap::CarefulInverse& ci,
+                             double pivot_threshold, Chi2Table& chi2) {
+  if (ci.dropped.empty()) return true;
+  const double bound = std::max(kPerfectInnovationTolerance, std::sqrt(chi2(1) * pivot_threshold));
+  const auto k = static_cast<Eigen::Index>(ci.kept.size());
+  Eigen::VectorXd nu_K(k);
+  for (Eigen::Index a = 0; a < k; ++a) nu_K(a) = nu(ci.kept[static_cast<std::size_t>(a)]);
+  const Eigen::VectorXd Sinv_nu_K = k > 0 ? Eigen::VectorXd(ci.inverse * nu_K) : Eigen::VectorXd();
+  for (const int d : ci.dropped) {
+    double conditional = nu(d);
+    for (Eigen::Index a = 0; a < k; ++a) conditional -= S(d, ci.kept[static_cast<std::size_t>(a)]) * Sinv_nu_K(a);
+    if (!(std::abs(conditional) <= bound)) return false;
+  }
+  return true;
+}
+
 Chi2Result chi2_test(const GlobalState& state, const spmap::ImplicitMeasurement& m, Chi2Table& chi2,
                      double relative_tolerance, double absolute_floor) {
   Chi2Result r;
@@ -101,8 +124,10 @@ Chi2Result chi2_test(const GlobalState& state, const spmap::ImplicitMeasurement&
   const double scale = std::max(in.reference_scale, absolute_floor / relative_tolerance);
   const spmap::CarefulInverse ci = spmap::careful_inverse(in.S, relative_tolerance, scale);
   const auto k = static_cast<Eigen::Index>(ci.kept.size());
+  const double pivot_threshold = relative_tolerance * std::max(in.S.diagonal().cwiseAbs().maxCoeff(), scale);
+  if (!dropped_rows_consistent(in.S, m.h, ci, pivot_threshold, chi2)) return r;
   if (k == 0) {
-    r.passed = m.h.cwiseAbs().maxCoeff() <= kPerfectInnovationTolerance;
+    r.passed = true;
     return r;
   }
   Eigen::VectorXd h_k(k);
@@ -746,6 +771,11 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
       residual = (0.5 * (residual + residual.transpose())).eval();
       const Eigen::VectorXd nu = h_all.segment(r0, 2) - B_Sinv * h_K;
       const spmap::CarefulInverse ci = spmap::careful_inverse(residual, rel, threshold / rel);
+      const double pivot_threshold = std::max(threshold, rel * residual.diagonal().cwiseAbs().maxCoeff());
+      if (!dropped_rows_consistent(residual, nu, ci, pivot_threshold, chi2)) {
+        ++rep.jc_rejected;
+        continue;
+      }
       const auto kc = static_cast<Eigen::Index>(ci.kept.size());
       Eigen::VectorXd nu_k(kc);
       for (Eigen::Index a = 0; a < kc; ++a) nu_k(a) = nu(ci.kept[static_cast<std::size_t>(a)]);
