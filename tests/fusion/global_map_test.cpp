@@ -284,6 +284,41 @@ TEST(GlobalMapTest, CarefulInversionDropsTheRowOfARepeatedPerfectRelation) {
   EXPECT_EQ(map.counts().segments, 2);
 }
 
+// The same perfect relation, contradicted: the second local map holds the two
+// walls 0.05 rad apart, also exactly. Each pairing alone passes (the frame's
+// heading is uncertain), but given the first, the second's angle row is
+// determined and its innovation is 0.05 rad: the joint test must reject it, not
+// drop the row and accept the pairing (which once let a 90° wrong pairing in).
+TEST(GlobalMapTest, APairingContradictingAnExactRelationIsRejected) {
+  const std::vector<Wall> walls{{Pose2(3.0, -2.0, 0.0), 6.0}, {Pose2(3.0, 2.0, 0.0), 6.0}};
+  auto constrained = [](const LocalMapSnapshot& base) {
+    LocalMapSnapshot s = base;
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(7, 6);
+    A(0, 0) = 0.05;
+    A(1, 1) = 0.05;
+    A(2, 2) = 0.01;
+    A(3, 3) = 0.01;
+    A(5, 4) = 0.01;
+    A(4, 2) = A(6, 2) = 0.005;
+    A(4, 5) = A(6, 5) = 0.004;  // φ1 − φ2 exact
+    s.covariance = A * A.transpose();
+    return s;
+  };
+  GlobalMap map(checked_config());
+  const Pose2 x_LR(1.0, 0.3, 0.05);
+  map.fuse(constrained(synthetic::make_snapshot(0, 0, Pose2(), x_LR, walls)));
+  std::vector<Wall> skewed = walls;
+  skewed[1].x_WS.phi = 0.05;
+  const FusionReport r =
+      map.fuse(constrained(synthetic::make_snapshot(0, 1, x_LR, Pose2(0.5, 0.0, 0.0), skewed)))[0];
+  EXPECT_EQ(r.jc_candidates, 2);  // both pass the individual test
+  EXPECT_EQ(r.pairings_accepted, 1);
+  EXPECT_EQ(r.jc_rejected, 1);
+  ASSERT_TRUE(r.min_eigenvalue.has_value());
+  EXPECT_GE(*r.min_eigenvalue, -1e-12);
+  EXPECT_LT(r.update_distance2, 20.0);
+}
+
 TEST(GlobalMapTest, RobotJoinsBySightingAndItsWaitingMapsAreFusedInOrder) {
   GlobalMap map(checked_config());
   const std::vector<Wall> walls = synthetic::room(0.0, 0.0, 12.0, 8.0, 2);
