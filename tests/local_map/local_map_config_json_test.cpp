@@ -27,7 +27,8 @@ TEST(LocalMapConfigJson, ReadsKnownKeysAndTheExtractionSection) {
       R"({"ship_distance_m": 12.5, "constraints_enabled": false, "max_segments": 40,
           "observation_angular_noise_rad": 0.0, "joint_compatibility_restarts": 0,
           "observation_end_noise_m": 0.04,
-          "extraction": {"split_distance_m": 0.08}})",
+          "extraction": {"split_distance_m": 0.08},
+          "scan_matching": {"enabled": true, "point_sigma_m": 0.05, "max_iterations": 12}})",
       "test.json");
   LocalMapConfig config;
   read_local_map_config(reader, config);
@@ -39,6 +40,10 @@ TEST(LocalMapConfigJson, ReadsKnownKeysAndTheExtractionSection) {
   EXPECT_EQ(config.joint_compatibility_restarts, 0u);
   EXPECT_EQ(config.observation_end_noise_m, 0.04);
   EXPECT_EQ(config.extraction.split_distance_m, 0.08);
+  EXPECT_TRUE(config.scan_matching.enabled);
+  EXPECT_EQ(config.scan_matching.point_sigma_m, 0.05);
+  EXPECT_EQ(config.scan_matching.max_iterations, 12);
+  EXPECT_EQ(config.scan_matching.last_gate_m, ScanMatcherConfig{}.last_gate_m);
   EXPECT_EQ(config.pairing_alpha, LocalMapConfig{}.pairing_alpha);  // absent: default
 }
 
@@ -49,6 +54,9 @@ TEST(LocalMapConfigJson, RejectsUnknownKeysAndBadValuesByName) {
   EXPECT_NE(error_of(R"({"extraction": {"min_points": 1}})").find("min_points"), std::string::npos);
   EXPECT_NE(error_of(R"({"extraction": {"bogus": 1}})").find("bogus"), std::string::npos);
   EXPECT_NE(error_of(R"({"observation_end_noise_m": -0.1})").find("observation_end_noise_m"), std::string::npos);
+  EXPECT_NE(error_of(R"({"scan_matching": {"gate": 1}})").find("gate"), std::string::npos);
+  EXPECT_NE(error_of(R"({"scan_matching": {"last_gate_m": 5.0}})").find("first_gate_m"), std::string::npos);
+  EXPECT_NE(error_of(R"({"scan_matching": {"prior_alpha": 0}})").find("prior_alpha"), std::string::npos);
   EXPECT_EQ(error_of(R"({})"), "no exception");
 }
 
