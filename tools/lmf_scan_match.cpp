@@ -86,7 +86,8 @@ int main(int argc, char** argv) {
       "config", po::value(&config_file),
       "JSON LocalMapConfig (odometry noise and the scan_matching section; matching is on regardless)")(
       "per-scan", po::bool_switch(&per_scan),
-      "one line per increment: k, odometry and match errors (m, deg), match NEES, matched points, RMS (m)");
+      "one line per increment: k, odometry and match errors (m, deg), match NEES, matched points, RMS (m),\n"
+      "Gauss-Newton iterations");
   try {
     po::variables_map vm;
     po::store(po::parse_command_line(argc, argv, options), vm);
@@ -133,10 +134,10 @@ int main(int argc, char** argv) {
       matched.add(m->x_AB, m->covariance, truth);
       odometry_where_matched.add(u, Q, truth);
       if (per_scan) {
-        std::printf("%4zu  odometry %.3f m %.2f deg  match %.3f m %.2f deg  NEES %.1f  points %d  rms %.3f m\n", k,
+        std::printf("%4zu  odometry %.3f m %.2f deg  match %.3f m %.2f deg  NEES %.1f  points %d  rms %.3f m  iterations %d\n", k,
                     odometry.translation_m.back(), odometry.rotation_rad.back() * 180.0 / std::numbers::pi,
                     matched.translation_m.back(), matched.rotation_rad.back() * 180.0 / std::numbers::pi,
-                    matched.nees.back(), m->correspondences, m->rms_m);
+                    matched.nees.back(), m->correspondences, m->rms_m, m->iterations);
       }
     }
     const double chi2_95 = boost::math::quantile(boost::math::chi_squared_distribution<double>(3.0), 0.95);

@@ -97,11 +97,13 @@ struct GlobalMapConfig {
   // real logs the shipped maps' end-pose NEES averaged 4.7–27 against 3
   // (linearisation after large odometry steps, walls that are not lines), so
   // at 1 a robot's own drift soon exceeds what its maps admit and loops stay
-  // open. 4 closed belgioioso with 3 robots (0.89 m → 0.21 m) and lowered the
-  // mean ATE of the nine real-log runs at every value tried from 3 to 6
-  // (README). 1 trusts the maps as shipped (config/sim.json: the simulator's
-  // short local maps are consistent). Must be > 0 and finite.
-  double local_map_covariance_scale = 4.0;
+  // open. Without scan matching, 4 closed belgioioso with 3 robots (0.89 m →
+  // 0.21 m); with it (LocalMapConfig::scan_matching, the default) 6 brought
+  // all three orebro runs under 0.25 m (4: 0.21-0.36 m) and every value from 5
+  // to 10 gave a lower mean ATE of the nine real-log runs than 4 (README). 1
+  // trusts the maps as shipped (config/sim.json: the simulator's short local
+  // maps are consistent). Must be > 0 and finite.
+  double local_map_covariance_scale = 6.0;
   // Geometric gate in W (cheap pre-filter before the chi2 test): a pair passes
   // if its angle, lateral offset and extent gap are within the fixed part plus
   // gate_sigmas conservative standard deviations of the frames and segments.
@@ -114,10 +116,13 @@ struct GlobalMapConfig {
   double min_overlap_m = 0.0;
   // Careful inversion: a pivot is redundant below this fraction of the largest one.
   // Relations made exact by the local maps' constraints drift a little above
-  // zero over hundreds of rank-k updates; at 1e-9 such rows were kept, amplified
-  // round-off and left negative LDLT pivots of P in two of the nine real-log
-  // runs (README); at 1e-7 P stayed PSD in all of them, ATE within 5 mm.
-  double careful_relative_tolerance = 1e-7;
+  // zero over hundreds of rank-k updates; a kept row with a pivot near the
+  // threshold amplifies round-off by about 1 / this (ε / 1e-7 ≈ 2e-9), so at
+  // 1e-9 and still at 1e-7 some real-log runs left negative LDLT pivots of P
+  // (down to -7e-9); at 1e-6 the worst of the nine runs was -2e-12, ATE the
+  // same within 5 mm (README). A pivot of 1e-6 of S's scale is a relation
+  // known to 1e-3 of the measurement's own precision: no information lost.
+  double careful_relative_tolerance = 1e-6;
   // ... or below this absolute value (m², rad²): a relation known this well
   // carries no information.
   double careful_absolute_floor = 1e-14;

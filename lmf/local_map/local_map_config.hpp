@@ -92,7 +92,7 @@ struct LocalMapConfig {
   // Segment extraction used by LocalMap::process_scan (step 2).
   ExtractionConfig extraction;
 
-  // Step 1 refined (beyond the paper; off by default): LocalMap::process_scan
+  // Step 1 refined (beyond the paper; on by default): LocalMap::process_scan
   // matches each scan against the previous one with the odometry increment as
   // prior (scan_matcher.hpp) and predicts with the match and its covariance;
   // when the match fails it predicts with the odometry as usual.

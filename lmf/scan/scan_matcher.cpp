@@ -28,11 +28,19 @@ bool usable_range(const LaserScan& scan, std::size_t i, const ScanMatcherConfig&
   return std::isfinite(r) && r >= c.min_range_m && r <= c.max_range_m && (scan.max_range_m <= 0.0 || r < no_return);
 }
 
-// x ⊙ b: point b of scan B in A's frame.
-Eigen::Vector2d transform(const Pose2& x, const Eigen::Vector2d& b) {
-  const double c = std::cos(x.phi);
-  const double s = std::sin(x.phi);
-  return {x.x + c * b.x() - s * b.y(), x.y + s * b.x() + c * b.y()};
+Eigen::Matrix2d rotation(double phi) {
+  const double c = std::cos(phi);
+  const double s = std::sin(phi);
+  Eigen::Matrix2d R;
+  R << c, -s, s, c;
+  return R;
+}
+
+// ∂e/∂δ for e = nᵀ (x ⊕ δ ⊙ b − a) at δ = 0, with R = R(x.phi):
+// x ⊕ δ ⊙ b = t + R δ_xy + R(φ + δφ) b, so ∂/∂δ_xy = R, ∂/∂δφ = R (−b_y, b_x).
+Eigen::RowVector3d point_to_line_row(const Eigen::Matrix2d& R, const Eigen::Vector2d& b, const Eigen::Vector2d& n) {
+  const Eigen::RowVector2d nR = n.transpose() * R;
+  return {nR(0), nR(1), nR.dot(Eigen::Vector2d(-b.y(), b.x()))};
 }
 
 // The nearest reference point with a normal to q (in A's frame) among the
@@ -47,14 +55,23 @@ int correspondence(const ReferenceScan& A, const Eigen::Vector2d& q, double gate
   const long half_width = std::clamp(static_cast<long>(std::ceil(gate / arc)), 1L, 20L);
   int best = -1;
   double best_d2 = gate * gate;
-  for (long k = std::max(0L, centre - half_width); k <= std::min(beams - 1, centre + half_width); ++k) {
+  auto visit = [&](long k) {
     const int j = A.point_of_beam[static_cast<std::size_t>(k)];
-    if (j < 0) continue;
+    if (j < 0) return;
     const double d2 = (A.points[static_cast<std::size_t>(j)] - q).squaredNorm();
     if (d2 < best_d2) {
       best_d2 = d2;
       best = j;
     }
+  };
+  if (centre >= 0 && centre < beams) visit(centre);
+  // Outwards from the bearing: a point o beams away (o - 0.5 beams in angle) is at least
+  // range · sin(o · increment) from q, so stop once that exceeds the best.
+  for (long o = 1; o <= half_width; ++o) {
+    const double bound = range * std::sin(std::min(1.5, (static_cast<double>(o) - 0.5) * std::abs(A.angle_increment_rad)));
+    if (bound * bound >= best_d2) break;
+    if (centre - o >= 0 && centre - o < beams) visit(centre - o);
+    if (centre + o >= 0 && centre + o < beams) visit(centre + o);
   }
   return best;
 }
@@ -142,13 +159,7 @@ std::vector<Eigen::Vector2d> scan_points(const LaserScan& scan, const ScanMatche
 }
 
 Eigen::RowVector3d point_to_line_jacobian(const Pose2& x, const Eigen::Vector2d& b, const Eigen::Vector2d& n) {
-  // x ⊕ δ ⊙ b = t + R(φ) δ_xy + R(φ + δφ) b, so ∂/∂δ_xy = R(φ), ∂/∂δφ = R(φ) (−b_y, b_x).
-  const double c = std::cos(x.phi);
-  const double s = std::sin(x.phi);
-  Eigen::Matrix2d R;
-  R << c, -s, s, c;
-  const Eigen::RowVector2d nR = n.transpose() * R;
-  return {nR(0), nR(1), nR.dot(Eigen::Vector2d(-b.y(), b.x()))};
+  return point_to_line_row(rotation(x.phi), b, n);
 }
 
 Eigen::Matrix3d prior_residual_jacobian(const Pose2& u_hat, const Pose2& x) {
@@ -179,18 +190,22 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
   Pose2 x = u_hat;
   Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
   double gate = config.first_gate_m;
+  constexpr int kIterationsPerGate = 5;
+  int iterations_at_gate = 0;
   for (int it = 0; it < config.max_iterations; ++it) {
     Eigen::Matrix3d A_laser = Eigen::Matrix3d::Zero();
     Eigen::Vector3d g_laser = Eigen::Vector3d::Zero();
     int matched = 0;
     double sum_e2 = 0.0;
+    const Eigen::Matrix2d R = rotation(x.phi);
+    const Eigen::Vector2d t(x.x, x.y);
     for (const Eigen::Vector2d& b : B) {
-      const Eigen::Vector2d q = transform(x, b);
+      const Eigen::Vector2d q = t + R * b;  // x ⊙ b: b in A's frame
       const int j = correspondence(A, q, gate);
       if (j < 0) continue;
       const Eigen::Vector2d& n = A.normals[static_cast<std::size_t>(j)];
       const double e = n.dot(q - A.points[static_cast<std::size_t>(j)]);
-      const Eigen::RowVector3d J = point_to_line_jacobian(x, b, n);
+      const Eigen::RowVector3d J = point_to_line_row(R, b, n);
       const double w = std::abs(e) <= huber ? 1.0 : huber / std::abs(e);
       A_laser.noalias() += w * J.transpose() * J;
       g_laser.noalias() += w * e * J.transpose();
@@ -216,10 +231,16 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
     const Eigen::Vector3d delta = -H.ldlt().solve(gradient);
     if (!delta.allFinite()) return std::nullopt;
     x = compose(x, Pose2(delta(0), delta(1), delta(2)));
-    const bool settled = delta.head<2>().norm() < 1e-4 && std::abs(delta(2)) < 1e-5;
+    // Settled: a step below 1 mm and 0.1 mrad, a tenth of the match's own
+    // precision, or kIterationsPerGate steps at this gate (correspondences that
+    // flip between neighbours keep small steps going without improving anything).
+    ++iterations_at_gate;
+    const bool settled = (delta.head<2>().norm() < 1e-3 && std::abs(delta(2)) < 1e-4) ||
+                         iterations_at_gate >= kIterationsPerGate;
     if (settled) {
       if (gate <= config.last_gate_m) break;
       gate = std::max(config.last_gate_m, 0.5 * gate);
+      iterations_at_gate = 0;
     }
   }
   const Pose2 r_pose = between(u_hat, x);

@@ -71,7 +71,7 @@ TEST(GlobalMapTest, FirstLocalMapCreatesASubmapAndMovesTheFrameByTheRobotPose) {
   EXPECT_EQ(f->seq, 1);
   EXPECT_TRUE(is_near(f->x_WL, x_LR, 1e-12, 1e-12));
   const double scale = map.config().local_map_covariance_scale;
-  EXPECT_EQ(scale, 4.0);
+  EXPECT_EQ(scale, 6.0);
   EXPECT_TRUE(matrices_near(f->covariance, scale * s.covariance.topLeftCorner(3, 3), 1e-12));
   EXPECT_TRUE(r.min_eigenvalue.has_value());
   EXPECT_GE(*r.min_eigenvalue, -1e-12);
