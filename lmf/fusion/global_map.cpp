@@ -69,6 +69,16 @@ std::optional<std::pair<Reason, std::string>> covariance_problem(const Eigen::Ma
                                                  std::to_string(es.eigenvalues().minCoeff()) + ")"};
 }
 
+// The LDLT pivots of a block of P, and its smallest eigenvalue when a pivot is
+// negative beyond rounding (FusionReport::min_eigenvalue).
+void check_pivots(const Eigen::MatrixXd& M, FusionReport& rep) {
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(M);
+  rep.min_ldlt_pivot = ldlt.vectorD().minCoeff();
+  if (!(*rep.min_ldlt_pivot >= -FusionReport::kPsdTolerance)) {
+    rep.min_eigenvalue = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(M, Eigen::EigenvaluesOnly).eigenvalues().minCoeff();
+  }
+}
+
 // Chi2 test of an innovation through the careful inversion (eq. 8, DESIGN §6).
 struct Chi2Result {
   double distance2 = 0.0;
@@ -225,6 +235,11 @@ void GlobalMapConfig::validate() const {
           "snapshot_tolerance must be finite and >= 0");
   require(std::isfinite(max_coordinate_m) && max_coordinate_m > 0.0, "max_coordinate_m must be finite and > 0");
   require(frame_history_per_robot >= 0, "frame_history_per_robot must be >= 0");
+}
+
+bool FusionReport::covariance_ok() const {
+  if (min_eigenvalue) return *min_eigenvalue >= -kPsdTolerance;
+  return !min_ldlt_pivot || *min_ldlt_pivot >= -kPsdTolerance;
 }
 
 GlobalMap::GlobalMap(GlobalMapConfig config) : config_(config) { config_.validate(); }
@@ -937,13 +952,9 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
     take(rec.frames.at(rec.next_seq).frame);
     for (const EntityId u : unpaired) take(u);
     if (rep.new_submap) take(*rep.new_submap);
-    if (!ids.empty()) {
-      const Eigen::LDLT<Eigen::MatrixXd> ldlt(state_.marginal(ids));
-      rep.min_ldlt_pivot = ldlt.vectorD().minCoeff();
-    }
+    if (!ids.empty()) check_pivots(state_.marginal(ids), rep);
   } else if (config_.health == HealthCheck::kFullLdlt && state_.dimension() > 0) {
-    const Eigen::LDLT<Eigen::MatrixXd> ldlt(state_.full_covariance());
-    rep.min_ldlt_pivot = ldlt.vectorD().minCoeff();
+    check_pivots(state_.full_covariance(), rep);
   } else if (config_.health == HealthCheck::kFullEigen && state_.dimension() > 0) {
     const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(state_.full_covariance(), Eigen::EigenvaluesOnly);
     rep.min_eigenvalue = es.eigenvalues().minCoeff();

@@ -197,10 +197,19 @@ struct FusionReport {
   std::optional<EntityId> new_submap;
   Pose2 x_WL_next;  // the robot's next local frame
 
-  // Covariance health after the fusion (see HealthCheck).
+  // Covariance health after the fusion (see HealthCheck): the smallest LDLT
+  // pivot of the checked block and, when that pivot is below -kPsdTolerance
+  // (or with kFullEigen), its smallest eigenvalue. P is rank deficient by
+  // design (relations made exact by the local maps' constraints), and the LDLT
+  // of a rank-deficient PSD matrix can show a negative pivot far larger than
+  // its smallest eigenvalue (-1.7e-7 against -8e-15 on a real log): the
+  // eigenvalue decides.
+  static constexpr double kPsdTolerance = 1e-9;
   HealthCheck health_scope = HealthCheck::kNone;
   std::optional<double> min_ldlt_pivot;
   std::optional<double> min_eigenvalue;
+  // PSD within kPsdTolerance: by the eigenvalue when there is one, else the pivot.
+  bool covariance_ok() const;
 
   MapCounts size_after;
   PhaseTimes time;

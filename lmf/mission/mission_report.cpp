@@ -108,11 +108,7 @@ const char* sighting_status_name(fusion::SightingStatus s) {
   return "unknown";
 }
 
-bool covariance_ok(const fusion::FusionReport& r) {
-  if (r.min_ldlt_pivot && *r.min_ldlt_pivot < -1e-9) return false;
-  if (r.min_eigenvalue && *r.min_eigenvalue < -1e-9) return false;
-  return true;
-}
+bool covariance_ok(const fusion::FusionReport& r) { return r.covariance_ok(); }
 
 std::optional<MissionScore> score_mission(const MissionResult& result, const MissionInputs& inputs,
                                           const fusion::GlobalMap& map) {

@@ -38,8 +38,8 @@ nlohmann::json fusion_report_json(const fusion::FusionReport& report);
 // "joined", "joined_approximately", "pending", "ignored".
 const char* sighting_status_name(fusion::SightingStatus status);
 
-// False when the fusion's covariance check saw a negative pivot or eigenvalue
-// beyond rounding (-1e-9).
+// FusionReport::covariance_ok: false when the fusion's covariance check saw a
+// negative eigenvalue (or, without one, LDLT pivot) beyond rounding (-1e-9).
 bool covariance_ok(const fusion::FusionReport& report);
 
 // Scores the joined robots that have a reference; nullopt when none has.

@@ -319,6 +319,21 @@ TEST(GlobalMapTest, APairingContradictingAnExactRelationIsRejected) {
   EXPECT_LT(r.update_distance2, 20.0);
 }
 
+// The health verdict: the eigenvalue decides when the check computed one (a
+// rank-deficient PSD block can show a large negative LDLT pivot), else the pivot.
+TEST(FusionReportTest, CovarianceVerdictPrefersTheEigenvalue) {
+  FusionReport r;
+  EXPECT_TRUE(r.covariance_ok());  // nothing checked
+  r.min_ldlt_pivot = -1.7e-7;
+  EXPECT_FALSE(r.covariance_ok());
+  r.min_eigenvalue = -8e-15;
+  EXPECT_TRUE(r.covariance_ok());
+  r.min_eigenvalue = -2e-9;
+  EXPECT_FALSE(r.covariance_ok());
+  r.min_ldlt_pivot = 1e-3;
+  EXPECT_FALSE(r.covariance_ok());
+}
+
 TEST(GlobalMapTest, RobotJoinsBySightingAndItsWaitingMapsAreFusedInOrder) {
   GlobalMap map(checked_config());
   const std::vector<Wall> walls = synthetic::room(0.0, 0.0, 12.0, 8.0, 2);
