@@ -484,10 +484,11 @@ void ServerNode::record_fusions(const std::vector<fusion::FusionReport>& reports
     fusion_ms_sum_ += r.time.total_s * 1e3;
     last_covariance_ok_ = mission::covariance_ok(r);
     covariance_always_ok_ = covariance_always_ok_ && last_covariance_ok_;
-    if (r.min_ldlt_pivot) {
-      last_min_pivot_ = r.min_ldlt_pivot;
-    } else if (r.min_eigenvalue) {
+    // The eigenvalue when the check computed one (it decides: FusionReport::covariance_ok).
+    if (r.min_eigenvalue) {
       last_min_pivot_ = r.min_eigenvalue;
+    } else if (r.min_ldlt_pivot) {
+      last_min_pivot_ = r.min_ldlt_pivot;
     }
   }
 }

@@ -14,6 +14,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "lmf/spmap/careful_inverse.hpp"
+#include "lmf/spmap/covariance_check.hpp"
 #include "lmf/spmap/segment_ops.hpp"
 
 namespace lmf::fusion {
@@ -49,24 +50,16 @@ using Reason = InvalidInput::Reason;
 // Why P is not a covariance (symmetric PSD within tolerance · max(1, max |P_ii|)), if it is not.
 std::optional<std::pair<Reason, std::string>> covariance_problem(const Eigen::MatrixXd& P, double tolerance) {
   if (!P.allFinite()) return std::pair{Reason::kNonFinite, std::string("has NaN or inf entries")};
-  if (P.rows() == 0) return std::nullopt;
-  const double scale = std::max(1.0, P.diagonal().cwiseAbs().maxCoeff());
-  const double asymmetry = (P - P.transpose()).cwiseAbs().maxCoeff();
-  if (asymmetry > tolerance * scale) {
-    return std::pair{Reason::kNotSymmetricPsd, "is not symmetric (max |P - P^T| = " + std::to_string(asymmetry) + ")"};
+  const spmap::CovarianceHealth health = spmap::check_covariance(P, tolerance);
+  if (!health.symmetric) {
+    return std::pair{Reason::kNotSymmetricPsd,
+                     "is not symmetric (max |P - P^T| = " + std::to_string(health.max_asymmetry) + ")"};
   }
-  // PSD within tolerance <=> P + tolerance·scale·I is positive definite: one
-  // Cholesky (O(n³/6)) instead of an eigen-decomposition, which is only run to
-  // say by how much when the test fails.
-  Eigen::MatrixXd shifted = 0.5 * (P + P.transpose());
-  shifted.diagonal().array() += std::max(tolerance * scale, std::numeric_limits<double>::min());
-  // A factor with NaN or inf is a failure too: huge entries overflow inside
-  // the factorisation and NaN passes LLT's own pivot test (found by fuzzing).
-  const Eigen::LLT<Eigen::MatrixXd> llt(shifted);
-  if (llt.info() == Eigen::Success && llt.matrixLLT().allFinite()) return std::nullopt;
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(0.5 * (P + P.transpose()), Eigen::EigenvaluesOnly);
-  return std::pair{Reason::kNotSymmetricPsd, "is not positive semidefinite (smallest eigenvalue " +
-                                                 std::to_string(es.eigenvalues().minCoeff()) + ")"};
+  if (!health.positive_semidefinite) {
+    return std::pair{Reason::kNotSymmetricPsd, "is not positive semidefinite (smallest eigenvalue " +
+                                                   std::to_string(health.min_eigenvalue.value_or(std::numeric_limits<double>::quiet_NaN())) + ")"};
+  }
+  return std::nullopt;
 }
 
 // The LDLT pivots of a block of P, and its smallest eigenvalue when a pivot is

@@ -5,14 +5,19 @@
 #include <limits>
 #include <sstream>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
 namespace lmf::spmap {
 
 std::string CovarianceHealth::describe() const {
   std::ostringstream out;
-  out << (ok() ? "ok" : "BAD") << ": max|P-P^T|=" << max_asymmetry << (symmetric ? "" : " (not symmetric)")
-      << ", min eigenvalue=" << min_eigenvalue << (positive_semidefinite ? "" : " (not PSD)");
+  out << (ok() ? "ok" : "BAD") << ": max|P-P^T|=" << max_asymmetry << (symmetric ? "" : " (not symmetric)");
+  if (min_eigenvalue) {
+    out << ", min eigenvalue=" << *min_eigenvalue << (positive_semidefinite ? "" : " (not PSD)");
+  } else {
+    out << ", PSD within tolerance";
+  }
   return out.str();
 }
 
@@ -30,12 +35,16 @@ CovarianceHealth check_covariance(const Eigen::Ref<const Eigen::MatrixXd>& P, do
   const double scale = std::max(1.0, P.diagonal().cwiseAbs().maxCoeff());
   health.max_asymmetry = (P - P.transpose()).cwiseAbs().maxCoeff();
   health.symmetric = health.max_asymmetry <= tolerance * scale;
-  // O(n³) eigen-decomposition: fine for local maps (tens of entities) and for
-  // occasional supervision of the global map, not for every update of a big one.
-  const Eigen::MatrixXd sym = 0.5 * (P + P.transpose());
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> solver(sym, Eigen::EigenvaluesOnly);
+  const double shift = std::max(tolerance * scale, std::numeric_limits<double>::min());
+  Eigen::MatrixXd shifted = 0.5 * (P + P.transpose());
+  // A factor with NaN or inf fails too: huge entries overflow inside the
+  // factorisation and NaN passes LLT's own pivot test.
+  shifted.diagonal().array() += shift;
+  const Eigen::LLT<Eigen::MatrixXd> llt(shifted);
+  if (llt.info() == Eigen::Success && llt.matrixLLT().allFinite()) return health;
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> solver(0.5 * (P + P.transpose()), Eigen::EigenvaluesOnly);
   health.min_eigenvalue = solver.eigenvalues().minCoeff();
-  health.positive_semidefinite = health.min_eigenvalue >= -tolerance * scale;
+  health.positive_semidefinite = *health.min_eigenvalue >= -tolerance * scale;
   return health;
 }
 

@@ -143,7 +143,8 @@ TEST(CovarianceCheck, FlagsAsymmetricAndIndefinite) {
   const CovarianceHealth h_ind = check_covariance(indefinite);
   EXPECT_TRUE(h_ind.symmetric);
   EXPECT_FALSE(h_ind.positive_semidefinite);
-  EXPECT_NEAR(h_ind.min_eigenvalue, -1.0, 1e-12);
+  ASSERT_TRUE(h_ind.min_eigenvalue.has_value());
+  EXPECT_NEAR(*h_ind.min_eigenvalue, -1.0, 1e-12);
   EXPECT_FALSE(h_ind.describe().empty());
 
   Eigen::Matrix2d nan = Eigen::Matrix2d::Identity();
