@@ -216,6 +216,8 @@ void AgentNode::process(const rt::RobotScan& scan) {
   last_scan_utime_ = scan.scan.utime;
   map_has_scans_ = true;
   ++counters_.scans_processed;
+  if (report.scan_match_tried) ++counters_.scans_match_tried;
+  if (report.scan_matched) ++counters_.scans_matched;
   if (!report.covariance_health.ok()) {
     window_covariance_ok_ = false;
     if (counters_.covariance_always_ok) {
