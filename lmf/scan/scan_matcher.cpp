@@ -50,7 +50,9 @@ int correspondence(const ReferenceScan& A, const Eigen::Vector2d& q, double gate
   if (beams == 0 || A.angle_increment_rad == 0.0) return -1;
   const double range = q.norm();
   const double bearing = std::atan2(q.y(), q.x());
-  const long centre = std::lround((bearing - A.angle_min_rad) / A.angle_increment_rad);
+  const double index = (bearing - A.angle_min_rad) / A.angle_increment_rad;
+  if (!(std::abs(index) < 4.0 * static_cast<double>(beams))) return -1;  // far outside the scan (or NaN)
+  const long centre = std::lround(index);
   const double arc = std::max(range * std::abs(A.angle_increment_rad), 1e-3);
   const long half_width = std::clamp(static_cast<long>(std::ceil(gate / arc)), 1L, 20L);
   int best = -1;
