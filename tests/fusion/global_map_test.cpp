@@ -245,25 +245,30 @@ TEST(GlobalMapTest, GlobalSegmentsMatchingOneLocalSegmentAreFused) {
   EXPECT_GE(min_eigenvalue(map), -1e-12);
 }
 
+// A snapshot of a robot and two walls whose covariance makes φ1 − φ2 exact (a
+// perfect shape constraint, DESIGN §4.9): both angles follow the robot heading
+// and one shared angle error.
+LocalMapSnapshot with_exact_relative_angle(const LocalMapSnapshot& base) {
+  LocalMapSnapshot s = base;
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(7, 6);
+  A(0, 0) = 0.05;
+  A(1, 1) = 0.05;
+  A(2, 2) = 0.01;
+  A(3, 3) = 0.01;             // lateral of wall 1
+  A(5, 4) = 0.01;             // lateral of wall 2
+  A(4, 2) = A(6, 2) = 0.005;  // both angles follow the robot heading...
+  A(4, 5) = A(6, 5) = 0.004;  // ...and one shared angle error: φ1 − φ2 is exact
+  s.covariance = A * A.transpose();
+  return s;
+}
+
 // Two parallel walls whose relative angle is perfectly known in the local map
 // (a perfect shape constraint, DESIGN §4.9) and therefore also in the global
 // map built from it: two pairings repeat that relation, S is singular, and the
 // careful inversion must drop one row (paper §III.B).
 TEST(GlobalMapTest, CarefulInversionDropsTheRowOfARepeatedPerfectRelation) {
   const std::vector<Wall> walls{{Pose2(3.0, -2.0, 0.0), 6.0}, {Pose2(3.0, 2.0, 0.0), 6.0}};
-  auto constrained = [](const LocalMapSnapshot& base) {
-    LocalMapSnapshot s = base;
-    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(7, 6);
-    A(0, 0) = 0.05;
-    A(1, 1) = 0.05;
-    A(2, 2) = 0.01;
-    A(3, 3) = 0.01;                      // lateral of wall 1
-    A(5, 4) = 0.01;                      // lateral of wall 2
-    A(4, 2) = A(6, 2) = 0.005;           // both angles follow the robot heading...
-    A(4, 5) = A(6, 5) = 0.004;           // ...and one shared angle error: φ1 − φ2 is exact
-    s.covariance = A * A.transpose();
-    return s;
-  };
+  const auto constrained = with_exact_relative_angle;
   GlobalMapConfig config = checked_config();
   GlobalMap map(config);
   const Pose2 x_LR(1.0, 0.3, 0.05);
@@ -291,19 +296,7 @@ TEST(GlobalMapTest, CarefulInversionDropsTheRowOfARepeatedPerfectRelation) {
 // drop the row and accept the pairing (which once let a 90° wrong pairing in).
 TEST(GlobalMapTest, APairingContradictingAnExactRelationIsRejected) {
   const std::vector<Wall> walls{{Pose2(3.0, -2.0, 0.0), 6.0}, {Pose2(3.0, 2.0, 0.0), 6.0}};
-  auto constrained = [](const LocalMapSnapshot& base) {
-    LocalMapSnapshot s = base;
-    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(7, 6);
-    A(0, 0) = 0.05;
-    A(1, 1) = 0.05;
-    A(2, 2) = 0.01;
-    A(3, 3) = 0.01;
-    A(5, 4) = 0.01;
-    A(4, 2) = A(6, 2) = 0.005;
-    A(4, 5) = A(6, 5) = 0.004;  // φ1 − φ2 exact
-    s.covariance = A * A.transpose();
-    return s;
-  };
+  const auto constrained = with_exact_relative_angle;
   GlobalMap map(checked_config());
   const Pose2 x_LR(1.0, 0.3, 0.05);
   map.fuse(constrained(synthetic::make_snapshot(0, 0, Pose2(), x_LR, walls)));
