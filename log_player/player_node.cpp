@@ -204,8 +204,8 @@ void PlayerNode::rate_pump() {
   while (next_event_ < events_.size() && due_time(events_[next_event_].utime) <= now) {
     ++counters_.scans_sent;
     send_scan(events_[next_event_++]);
+    report_progress(false);  // per scan: a late loop's burst still gives every 10 % its line
   }
-  report_progress(false);
   // Sightings whose time has come; after ack_timeout more, an earlier ack may stand in.
   while (next_sighting_ < inputs_.sightings.size()) {
     const mission::SightingInput& s = inputs_.sightings[next_sighting_];
@@ -332,6 +332,12 @@ void PlayerNode::report_progress(bool force) {
   const auto now = std::chrono::steady_clock::now();
   const std::int64_t done = options_.lockstep ? static_cast<std::int64_t>(next_event_) : counters_.scans_sent;
   const std::int64_t total = std::max<std::int64_t>(1, counters_.scans_total);
+  const int decile = static_cast<int>(10 * done / total);
+  if (options_.progress == PlayerOptions::Progress::kLine) {
+    if (!force && now - last_progress_time_ < 100ms) return;
+  } else if (!force && decile <= last_progress_decile_) {
+    return;
+  }
   const double elapsed_s = std::chrono::duration<double>(now - start_time_).count();
   const double rate = elapsed_s > 0.0 ? static_cast<double>(done) / elapsed_s : 0.0;
   const double eta_s = rate > 0.0 ? static_cast<double>(total - done) / rate : 0.0;
@@ -341,13 +347,10 @@ void PlayerNode::report_progress(bool force) {
        << " scans (" << percent << " %), " << rate << " scans/s, ETA " << std::setprecision(0) << eta_s << " s, "
        << counters_.sightings_published << " sightings";
   if (options_.progress == PlayerOptions::Progress::kLine) {
-    if (!force && now - last_progress_time_ < 100ms) return;
     last_progress_time_ = now;
     out << "\r" << line.str() << "\033[K" << (force ? "\n" : "") << std::flush;
     return;
   }
-  const int decile = static_cast<int>(10 * done / total);
-  if (decile <= last_progress_decile_ && !force) return;
   if (force && decile <= last_progress_decile_ && last_progress_decile_ == 10) return;
   last_progress_decile_ = decile;
   out << line.str() << "\n" << std::flush;
