@@ -174,6 +174,8 @@ void BM_FuseLocalMap(benchmark::State& state) {
   state.counters["segments"] = w.map.counts().segments;
   state.counters["n"] = static_cast<double>(last.update_dimension);
   state.counters["k"] = last.rows_kept;
+  state.counters["gated"] = static_cast<double>(last.pairs_considered - last.gate_rejected);
+  state.counters["jc_candidates"] = last.jc_candidates;
   state.counters["pairings"] = last.pairings_accepted;
   state.counters["new"] = last.new_segments;
   state.counters["fusion_ms"] = fusion_ms;
@@ -220,7 +222,7 @@ int main(int argc, char** argv) {
   for (const int size : sizes) {
     // Fewer repetitions for the large maps (each one copies a P of up to ~0.7 GB);
     // the medians of fusion and reference are compared, both measured in one loop.
-    const int iterations = std::max(5, 4000 / size);
+    const int iterations = std::max(5, 20000 / size);
     benchmark::RegisterBenchmark("BM_FuseLocalMap", BM_FuseLocalMap)
         ->Arg(size)
         ->Iterations(iterations)

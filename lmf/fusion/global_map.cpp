@@ -123,7 +123,7 @@ bool dropped_rows_consistent(const Eigen::MatrixXd& S, const Eigen::VectorXd& nu
 Chi2Result chi2_test(const GlobalState& state, const spmap::ImplicitMeasurement& m, Chi2Table& chi2,
                      double relative_tolerance, double absolute_floor) {
   Chi2Result r;
-  const GlobalState::Innovation in = state.innovation({m});
+  const GlobalState::Innovation in = state.innovation(m);
   const double scale = std::max(in.reference_scale, absolute_floor / relative_tolerance);
   const spmap::CarefulInverse ci = spmap::careful_inverse(in.S, relative_tolerance, scale);
   const auto k = static_cast<Eigen::Index>(ci.kept.size());
@@ -154,14 +154,13 @@ struct GateSegment {
 };
 
 GateSegment gate_segment(const GlobalState& state, const Entity& e) {
-  const Eigen::MatrixXd P = state.block(e.id, e.id);
   return {e.id,
           e.location,
           std::cos(e.location.phi),
           std::sin(e.location.phi),
           0.5 * e.length_m,
-          std::sqrt(std::max(0.0, P(0, 0))),
-          std::sqrt(std::max(0.0, P(1, 1)))};
+          std::sqrt(std::max(0.0, state.covariance(e.offset, e.offset))),
+          std::sqrt(std::max(0.0, state.covariance(e.offset + 1, e.offset + 1)))};
 }
 
 // Union-find over global segment ids (segments that matched one local segment).
@@ -583,7 +582,8 @@ std::vector<FusionReport> GlobalMap::fuse(const LocalMapSnapshot& snapshot) {
   return out;
 }
 
-void GlobalMap::extend_to_cover(EntityId segment, const spmap::Interval& interval) {
+void GlobalMap::extend_to_cover(EntityId segment, const spmap::Interval& interval,
+                                std::map<EntityId, Eigen::Matrix2d>& shifts) {
   // Geometric update (paper §II.C): the segment grows to cover the projection;
   // moving its frame by dx along its axis changes the meaning of its lateral
   // error, p' = [[1, dx], [0, 1]] p (DESIGN §3).
@@ -595,8 +595,20 @@ void GlobalMap::extend_to_cover(EntityId segment, const spmap::Interval& interva
   const double dx = 0.5 * (lo + hi);
   e.location = compose(e.location, Pose2(dx, 0.0, 0.0));
   e.length_m = hi - lo;
-  state_.replace_perturbation(segment, {{segment, spmap::segment_frame_shift(dx)}});
+  const auto [it, inserted] = shifts.try_emplace(segment, Eigen::Matrix2d::Identity());
+  it->second = spmap::segment_frame_shift(dx) * it->second;
 }
+
+namespace {
+
+void apply_shifts(GlobalState& state, const std::map<EntityId, Eigen::Matrix2d>& shifts) {
+  std::vector<GlobalState::LinearTerm> maps;
+  maps.reserve(shifts.size());
+  for (const auto& [id, J] : shifts) maps.push_back({id, J});
+  state.transform_perturbations(maps);
+}
+
+}  // namespace
 
 FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
   PhaseClock clock;
@@ -836,17 +848,20 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
   std::vector<bool> used(k, false);
   std::set<EntityId> touched_submaps;
   std::map<std::size_t, std::vector<EntityId>> matches_of_local;
+  std::map<EntityId, Eigen::Matrix2d> shifts;
   for (const std::size_t a : accepted) {
     const Candidate& c = candidates[a];
     const Pose2 x_SiSj = between(state_.root_location(c.global_segment), state_.root_location(c.local_segment));
     const Entity& global = state_.entity(c.global_segment);
     const double before = global.length_m;
-    extend_to_cover(c.global_segment, spmap::project_extent(x_SiSj, state_.entity(c.local_segment).length_m));
+    extend_to_cover(c.global_segment, spmap::project_extent(x_SiSj, state_.entity(c.local_segment).length_m),
+                    shifts);
     if (state_.entity(c.global_segment).length_m > before) ++rep.segments_extended;
     used[c.local_index] = true;
     touched_submaps.insert(*state_.entity(c.global_segment).parent);
     matches_of_local[c.local_index].push_back(c.global_segment);
   }
+  apply_shifts(state_, shifts);
   for (std::size_t j = 0; j < k; ++j) {
     if (used[j]) removals.push_back(local[j]);
   }
@@ -868,7 +883,9 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
       }
       state_.ekf_update({m}, rel, floor);
       const Pose2 x_keep_drop = between(state_.root_location(keep), state_.root_location(drop));
-      extend_to_cover(keep, spmap::project_extent(x_keep_drop, state_.entity(drop).length_m));
+      std::map<EntityId, Eigen::Matrix2d> shift;
+      extend_to_cover(keep, spmap::project_extent(x_keep_drop, state_.entity(drop).length_m), shift);
+      apply_shifts(state_, shift);
       removals.push_back(drop);
       ++rep.global_segments_fused;
     }

@@ -339,7 +339,11 @@ class GlobalMap {
   std::optional<SightingStatus> try_resolve(const RobotSighting& sighting, std::vector<FusionReport>& out);
   FusionReport fuse_one(int robot_id, const LocalMapSnapshot& snapshot);
   void retire_frames(int robot_id, std::vector<EntityId>& removals);
-  void extend_to_cover(EntityId segment, const spmap::Interval& interval);
+  // Geometric update of one global segment: its location and length change at
+  // once; the matching change of its perturbation is composed into `shifts`,
+  // for one GlobalState::transform_perturbations over all extended segments.
+  void extend_to_cover(EntityId segment, const spmap::Interval& interval,
+                       std::map<EntityId, Eigen::Matrix2d>& shifts);
   bool is_submap(EntityId frame) const;
   void check_pose(const Pose2& pose, const std::string& what) const;
   void check_covariance(const Eigen::MatrixXd& P, const std::string& what) const;

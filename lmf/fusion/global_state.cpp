@@ -300,16 +300,91 @@ void GlobalState::replace_perturbation(EntityId target, const std::vector<Linear
   }
   // P' = A P Aᵀ, A = I except A(t, :) = Σ J_i at e_i's columns: only t's row
   // changes, G = Σ J_i P(e_i, :), and P'(t, t) = Σ_j G(:, e_j) J_jᵀ, all from the old P.
-  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(d_t, n_);
-  for (const LinearTerm& term : terms) G.noalias() += term.J * columns(term.entity).transpose();
+  // The products are d x d' by d' x n: written as lazy (coefficient) products,
+  // since Eigen's blocked GEMM costs more than the arithmetic at these shapes.
+  Eigen::MatrixXd G;
+  if (terms.size() == 1 && terms.front().entity == target) {
+    // p_t ← J p_t (a segment's frame moved along its axis, §3): G = J P(t, :)
+    // straight from the stored row and column of t, no gather.
+    const Eigen::MatrixXd& J = terms.front().J;
+    G.resize(d_t, n_);
+    G.leftCols(off_t).noalias() = J.lazyProduct(storage_.block(off_t, 0, d_t, off_t));
+    G.middleCols(off_t, d_t).noalias() = J.lazyProduct(symmetric_from_lower(storage_.block(off_t, off_t, d_t, d_t)));
+    const Eigen::Index below = n_ - off_t - d_t;
+    G.rightCols(below).noalias() = J.lazyProduct(storage_.block(off_t + d_t, off_t, below, d_t).transpose());
+  } else {
+    G = Eigen::MatrixXd::Zero(d_t, n_);
+    for (const LinearTerm& term : terms) G.noalias() += term.J.lazyProduct(columns(term.entity).transpose());
+  }
   Eigen::MatrixXd G_tt = Eigen::MatrixXd::Zero(d_t, d_t);
   for (const LinearTerm& term : terms) {
-    G_tt.noalias() += G.middleCols(entity(term.entity).offset, term.J.cols()) * term.J.transpose();
+    G_tt.noalias() += G.middleCols(entity(term.entity).offset, term.J.cols()).lazyProduct(term.J.transpose());
   }
   storage_.block(off_t, 0, d_t, off_t) = G.leftCols(off_t);
   const Eigen::Index below = n_ - off_t - d_t;
   storage_.block(off_t + d_t, off_t, below, d_t) = G.rightCols(below).transpose();
   storage_.block(off_t, off_t, d_t, d_t) = 0.5 * (G_tt + G_tt.transpose());
+}
+
+void GlobalState::transform_perturbations(const std::vector<LinearTerm>& maps) {
+  struct Target {
+    Eigen::Index offset;
+    Eigen::Index dof;
+    const Eigen::MatrixXd* J;
+  };
+  std::vector<Target> targets;
+  targets.reserve(maps.size());
+  for (const LinearTerm& map : maps) {
+    const Entity& e = entity(map.entity);
+    const Eigen::Index d = spmap::dof(e.kind);
+    if (map.J.rows() != d || map.J.cols() != d) {
+      throw std::invalid_argument("GlobalState::transform_perturbations: J for " + id_text(map.entity) + " is " +
+                                  std::to_string(map.J.rows()) + "x" + std::to_string(map.J.cols()) +
+                                  ", expected " + std::to_string(d) + "x" + std::to_string(d));
+    }
+    targets.push_back({e.offset, d, &map.J});
+  }
+  std::sort(targets.begin(), targets.end(), [](const Target& a, const Target& b) { return a.offset < b.offset; });
+  for (std::size_t i = 1; i < targets.size(); ++i) {
+    if (targets[i].offset == targets[i - 1].offset) {
+      throw std::invalid_argument("GlobalState::transform_perturbations: an entity is listed twice");
+    }
+  }
+  // Diagonal blocks from the old P: J D Jᵀ.
+  std::vector<Eigen::MatrixXd> diagonal;
+  diagonal.reserve(targets.size());
+  for (const Target& t : targets) {
+    const Eigen::MatrixXd D = symmetric_from_lower(storage_.block(t.offset, t.offset, t.dof, t.dof));
+    diagonal.push_back(*t.J * D * t.J->transpose());
+  }
+  // Rows: P(t, j) ← J_t P(t, j) for every stored column j left of t's block,
+  // column by column (a target's rows in column j are contiguous).
+  std::size_t first = 0;  // the first target whose block starts after column j
+  double v[3];
+  for (Eigen::Index j = 0; j < n_ && first < targets.size(); ++j) {
+    while (first < targets.size() && targets[first].offset <= j) ++first;
+    double* column = &storage_(0, j);
+    for (std::size_t i = first; i < targets.size(); ++i) {
+      const Target& t = targets[i];
+      double* rows = column + t.offset;
+      for (Eigen::Index a = 0; a < t.dof; ++a) v[a] = rows[a];
+      for (Eigen::Index a = 0; a < t.dof; ++a) {
+        double sum = 0.0;
+        for (Eigen::Index b = 0; b < t.dof; ++b) sum += (*t.J)(a, b) * v[b];
+        rows[a] = sum;
+      }
+    }
+  }
+  // Columns: P(i, t) ← P(i, t) J_tᵀ below t's block (rows of later targets
+  // already carry their J: J_a P_ab J_bᵀ).
+  for (std::size_t i = 0; i < targets.size(); ++i) {
+    const Target& t = targets[i];
+    const Eigen::Index below = n_ - t.offset - t.dof;
+    auto block = storage_.block(t.offset + t.dof, t.offset, below, t.dof);
+    const Eigen::MatrixXd old = block;
+    block.noalias() = old.lazyProduct(t.J->transpose());
+    storage_.block(t.offset, t.offset, t.dof, t.dof) = 0.5 * (diagonal[i] + diagonal[i].transpose());
+  }
 }
 
 void GlobalState::validate_measurement(const spmap::ImplicitMeasurement& m, const char* where) const {
@@ -326,9 +401,14 @@ void GlobalState::validate_measurement(const spmap::ImplicitMeasurement& m, cons
   }
 }
 
-GlobalState::Stacked GlobalState::stack(const std::vector<spmap::ImplicitMeasurement>& measurements,
+GlobalState::Stacked GlobalState::stack(std::span<const spmap::ImplicitMeasurement> measurements,
                                          const char* where) const {
   Stacked st;
+  st.touched.reserve(4 * measurements.size());
+  st.column.reserve(4 * measurements.size());
+  st.width.reserve(4 * measurements.size());
+  st.offset.reserve(4 * measurements.size());
+  st.blocks.reserve(4 * measurements.size());
   Eigen::Index m = 0;
   Eigen::Index t = 0;
   for (const spmap::ImplicitMeasurement& meas : measurements) {
@@ -339,6 +419,7 @@ GlobalState::Stacked GlobalState::stack(const std::vector<spmap::ImplicitMeasure
         st.touched.push_back(b.entity);
         st.column.push_back(t);
         st.width.push_back(b.J.cols());
+        st.offset.push_back(entity(b.entity).offset);
         t += b.J.cols();
       }
     }
@@ -366,21 +447,15 @@ GlobalState::Stacked GlobalState::stack(const std::vector<spmap::ImplicitMeasure
 }
 
 Eigen::MatrixXd GlobalState::Stacked::times_Ht(const Eigen::MatrixXd& X) const {
+  // Column axpys: at these shapes (n x 3 times 3 x 2 per block) Eigen's
+  // blocked product costs more in packing than the arithmetic.
   Eigen::MatrixXd out = Eigen::MatrixXd::Zero(X.rows(), H.rows());
   for (const Block& b : blocks) {
     const Eigen::Index c = column[b.touched];
     const Eigen::Index d = width[b.touched];
-    out.middleCols(b.row, b.rows).noalias() += X.middleCols(c, d) * H.block(b.row, c, b.rows, d).transpose();
-  }
-  return out;
-}
-
-Eigen::MatrixXd GlobalState::Stacked::H_times(const Eigen::MatrixXd& Y) const {
-  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(H.rows(), Y.cols());
-  for (const Block& b : blocks) {
-    const Eigen::Index c = column[b.touched];
-    const Eigen::Index d = width[b.touched];
-    out.middleRows(b.row, b.rows).noalias() += H.block(b.row, c, b.rows, d) * Y.middleRows(c, d);
+    for (Eigen::Index i = 0; i < b.rows; ++i) {
+      for (Eigen::Index j = 0; j < d; ++j) out.col(b.row + i) += H(b.row + i, c + j) * X.col(c + j);
+    }
   }
   return out;
 }
@@ -390,9 +465,8 @@ Eigen::MatrixXd GlobalState::touched_columns(const Stacked& st) const {
   // read from the lower triangle (the row left of the diagonal, the column below it).
   Eigen::MatrixXd C(n_, st.H.cols());
   for (std::size_t a = 0; a < st.touched.size(); ++a) {
-    const Entity& e = entity(st.touched[a]);
-    const Eigen::Index off = e.offset;
-    const Eigen::Index d = spmap::dof(e.kind);
+    const Eigen::Index off = st.offset[a];
+    const Eigen::Index d = st.width[a];
     const Eigen::Index c = st.column[a];
     C.block(0, c, off, d) = storage_.block(off, 0, d, off).transpose();
     C.block(off, c, d, d) = symmetric_from_lower(storage_.block(off, off, d, d));
@@ -405,44 +479,47 @@ Eigen::MatrixXd GlobalState::touched_marginal(const Stacked& st, const Eigen::Ma
   const Eigen::Index t = st.H.cols();
   Eigen::MatrixXd M(t, t);
   for (std::size_t a = 0; a < st.touched.size(); ++a) {
-    const Entity& e = entity(st.touched[a]);
-    const Eigen::Index d = spmap::dof(e.kind);
+    const Eigen::Index off_a = st.offset[a];
+    const Eigen::Index d_a = st.width[a];
+    const Eigen::Index c_a = st.column[a];
     if (columns != nullptr) {
-      M.middleRows(st.column[a], d) = columns->middleRows(e.offset, d);
+      M.middleRows(c_a, d_a) = columns->middleRows(off_a, d_a);
       continue;
     }
-    for (std::size_t b = 0; b <= a; ++b) {
-      const Entity& f = entity(st.touched[b]);
-      const Eigen::Index df = spmap::dof(f.kind);
-      for (Eigen::Index i = 0; i < d; ++i) {
-        for (Eigen::Index j = 0; j < df; ++j) {
-          const double v = covariance(e.offset + i, f.offset + j);
-          M(st.column[a] + i, st.column[b] + j) = v;
-          M(st.column[b] + j, st.column[a] + i) = v;
-        }
+    // Block by block from the stored lower triangle, mirrored.
+    M.block(c_a, c_a, d_a, d_a) = symmetric_from_lower(storage_.block(off_a, off_a, d_a, d_a));
+    for (std::size_t b = 0; b < a; ++b) {
+      const Eigen::Index off_b = st.offset[b];
+      const Eigen::Index d_b = st.width[b];
+      const Eigen::Index c_b = st.column[b];
+      if (off_a > off_b) {
+        M.block(c_a, c_b, d_a, d_b) = storage_.block(off_a, off_b, d_a, d_b);
+      } else {
+        M.block(c_a, c_b, d_a, d_b) = storage_.block(off_b, off_a, d_b, d_a).transpose();
       }
+      M.block(c_b, c_a, d_b, d_a) = M.block(c_a, c_b, d_a, d_b).transpose();
     }
   }
   return M;
 }
 
 double GlobalState::scale_of(const Stacked& st, const Eigen::MatrixXd& P_tt) {
-  // max_i (Σ_blocks J P_EE Jᵀ + R)_ii: the diagonal blocks of P only.
+  // max_i (Σ_blocks J P_EE Jᵀ + R)_ii: the diagonal blocks of P only, over
+  // H's nonzero blocks.
   Eigen::VectorXd diag = st.R.diagonal();
-  for (std::size_t a = 0; a < st.touched.size(); ++a) {
-    const Eigen::Index c = st.column[a];
-    const Eigen::Index d = (a + 1 < st.touched.size() ? st.column[a + 1] : st.H.cols()) - c;
-    const Eigen::MatrixXd J = st.H.middleCols(c, d);
-    diag += (J * P_tt.block(c, c, d, d)).cwiseProduct(J).rowwise().sum();
+  for (const Stacked::Block& b : st.blocks) {
+    const Eigen::Index c = st.column[b.touched];
+    const Eigen::Index d = st.width[b.touched];
+    const auto J = st.H.block(b.row, c, b.rows, d);
+    diag.segment(b.row, b.rows) += J.lazyProduct(P_tt.block(c, c, d, d)).cwiseProduct(J).rowwise().sum();
   }
   return diag.size() > 0 ? diag.maxCoeff() : 0.0;
 }
 
-Eigen::MatrixXd GlobalState::touched_rows(const Stacked& st, const std::vector<Eigen::Index>& offsets,
-                                          const Eigen::MatrixXd& PHt) {
+Eigen::MatrixXd GlobalState::touched_rows(const Stacked& st, const Eigen::MatrixXd& PHt) {
   Eigen::MatrixXd out(st.H.cols(), PHt.cols());
   for (std::size_t a = 0; a < st.touched.size(); ++a) {
-    out.middleRows(st.column[a], st.width[a]) = PHt.middleRows(offsets[a], st.width[a]);
+    out.middleRows(st.column[a], st.width[a]) = PHt.middleRows(st.offset[a], st.width[a]);
   }
   return out;
 }
@@ -453,10 +530,18 @@ Eigen::MatrixXd GlobalState::gather_PHt(const std::vector<spmap::ImplicitMeasure
 }
 
 GlobalState::Innovation GlobalState::innovation(const std::vector<spmap::ImplicitMeasurement>& measurements) const {
-  const Stacked st = stack(measurements, "GlobalState::innovation");
+  return innovation_of(stack(measurements, "GlobalState::innovation"));
+}
+
+GlobalState::Innovation GlobalState::innovation(const spmap::ImplicitMeasurement& measurement) const {
+  return innovation_of(stack({&measurement, 1}, "GlobalState::innovation"));
+}
+
+GlobalState::Innovation GlobalState::innovation_of(const Stacked& st) const {
   const Eigen::MatrixXd P_tt = touched_marginal(st, nullptr);
   Innovation out;
-  out.S = st.H_times(st.times_Ht(P_tt)) + st.R;  // H P_tt Hᵀ + R (P_tt symmetric)
+  // H P_tt Hᵀ + R = ((P_tt Hᵀ)ᵀ Hᵀ) + R, P_tt symmetric.
+  out.S = st.times_Ht(st.times_Ht(P_tt).transpose()) + st.R;
   out.S = (0.5 * (out.S + out.S.transpose())).eval();
   out.reference_scale = scale_of(st, P_tt);
   return out;
@@ -510,10 +595,7 @@ StateUpdateReport GlobalState::ekf_update(const std::vector<spmap::ImplicitMeasu
   const Eigen::MatrixXd C = touched_columns(st);
   const Eigen::MatrixXd P_tt = touched_marginal(st, &C);
   Eigen::MatrixXd PHt = st.times_Ht(C);
-  std::vector<Eigen::Index> offsets;
-  offsets.reserve(st.touched.size());
-  for (const EntityId id : st.touched) offsets.push_back(entity(id).offset);
-  Eigen::MatrixXd S = st.H_times(touched_rows(st, offsets, PHt)) + st.R;
+  Eigen::MatrixXd S = st.times_Ht(touched_rows(st, PHt).transpose()) + st.R;  // H (P Hᵀ)(touched, :) + R
   S = (0.5 * (S + S.transpose())).eval();
 
   // DESIGN §6: full-pivot Gauss–Jordan; drop the rows whose pivots fall below

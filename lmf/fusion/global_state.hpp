@@ -21,6 +21,7 @@
 #pragma once
 
 #include <optional>
+#include <span>
 #include <unordered_map>
 #include <vector>
 
@@ -114,6 +115,13 @@ class GlobalState {
   };
   void replace_perturbation(EntityId target, const std::vector<LinearTerm>& terms);
 
+  // p_e ← J_e p_e for each listed entity (distinct; J_e square, dof(e)), P
+  // transformed exactly (P ← A P Aᵀ, A block diagonal) in one sweep over the
+  // stored columns: the rows of all listed entities within a column share its
+  // memory, where one replace_perturbation per entity would walk each
+  // entity's row (a column stride apiece) once per entity.
+  void transform_perturbations(const std::vector<LinearTerm>& maps);
+
   // P Hᵀ (n x m) as a gather over the entities the measurements touch.
   Eigen::MatrixXd gather_PHt(const std::vector<spmap::ImplicitMeasurement>& measurements) const;
 
@@ -127,6 +135,7 @@ class GlobalState {
     double reference_scale = 0.0;
   };
   Innovation innovation(const std::vector<spmap::ImplicitMeasurement>& measurements) const;
+  Innovation innovation(const spmap::ImplicitMeasurement& measurement) const;
   Eigen::MatrixXd innovation_covariance(const std::vector<spmap::ImplicitMeasurement>& measurements) const {
     return innovation(measurements).S;
   }
@@ -169,24 +178,23 @@ class GlobalState {
     std::vector<EntityId> touched;
     std::vector<Eigen::Index> column;  // first column of each touched entity in H
     std::vector<Eigen::Index> width;   // its degrees of freedom
+    std::vector<Eigen::Index> offset;  // its first row in P
     std::vector<Block> blocks;
     Eigen::MatrixXd H;
     Eigen::MatrixXd R;
     Eigen::VectorXd h;
 
-    // X Hᵀ for X with one column per column of H (X: r x t -> r x m), and H Y
-    // for Y with one row per column of H (Y: t x c -> m x c): products over the
-    // nonzero blocks only, never the dense H.
+    // X Hᵀ for X with one column per column of H (X: r x t -> r x m): a sum
+    // over H's nonzero blocks only, never the dense H. H Y is times_Ht(Yᵀ)ᵀ.
     Eigen::MatrixXd times_Ht(const Eigen::MatrixXd& X) const;
-    Eigen::MatrixXd H_times(const Eigen::MatrixXd& Y) const;
   };
-  Stacked stack(const std::vector<spmap::ImplicitMeasurement>& measurements, const char* where) const;
+  Stacked stack(std::span<const spmap::ImplicitMeasurement> measurements, const char* where) const;
+  Innovation innovation_of(const Stacked& st) const;
   // P(:, touched) (n x t) and P(touched, touched) (t x t).
   Eigen::MatrixXd touched_columns(const Stacked& st) const;
   Eigen::MatrixXd touched_marginal(const Stacked& st, const Eigen::MatrixXd* columns) const;
   // P(touched, :) Hᵀ (t x m): the touched rows of P Hᵀ, in H's column order.
-  static Eigen::MatrixXd touched_rows(const Stacked& st, const std::vector<Eigen::Index>& offsets,
-                                      const Eigen::MatrixXd& PHt);
+  static Eigen::MatrixXd touched_rows(const Stacked& st, const Eigen::MatrixXd& PHt);
   static double scale_of(const Stacked& st, const Eigen::MatrixXd& P_tt);
   void write_marginal(const std::vector<EntityId>& ids, const Eigen::MatrixXd& M, bool accumulate);
 

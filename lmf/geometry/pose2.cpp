@@ -8,6 +8,7 @@ namespace lmf {
 double wrap_angle(double angle_rad) {
   constexpr double kPi = std::numbers::pi;
   constexpr double kTwoPi = 2.0 * std::numbers::pi;
+  if (angle_rad > -kPi && angle_rad <= kPi) return angle_rad;  // the common case, without fmod
   double a = std::fmod(angle_rad, kTwoPi);  // (-2pi, 2pi)
   if (a <= -kPi) a += kTwoPi;
   if (a > kPi) a -= kTwoPi;

@@ -117,6 +117,39 @@ TEST(GlobalStateTest, ReplacePerturbationIsAPAt) {
   EXPECT_EQ(f.state.entity(copy).parent, std::nullopt);
 }
 
+TEST(GlobalStateTest, ReplacePerturbationByItselfOnlyIsAPAt) {
+  // The self-only form (a segment's frame shift) reads t's row and column in place.
+  std::mt19937 rng(14);
+  Fixture f(rng);
+  const Eigen::MatrixXd J = Eigen::MatrixXd::Random(2, 2);
+  f.state.replace_perturbation(f.ids[2], {{f.ids[2], J}});
+  Eigen::MatrixXd A = Eigen::MatrixXd::Identity(15, 15);
+  A.block(5, 5, 2, 2) = J;
+  EXPECT_TRUE(matrices_near(f.state.full_covariance(), A * f.P * A.transpose(), 1e-14));
+}
+
+TEST(GlobalStateTest, TransformPerturbationsIsBlockDiagonalAPAt) {
+  std::mt19937 rng(15);
+  Fixture f(rng);
+  // Listed out of state order: a segment, the last segment, a frame in between.
+  const Eigen::MatrixXd J1 = Eigen::MatrixXd::Random(2, 2);
+  const Eigen::MatrixXd J5 = Eigen::MatrixXd::Random(2, 2);
+  const Eigen::MatrixXd J3 = Eigen::MatrixXd::Random(3, 3);
+  f.state.transform_perturbations({{f.ids[5], J5}, {f.ids[1], J1}, {f.ids[3], J3}});
+  Eigen::MatrixXd A = Eigen::MatrixXd::Identity(15, 15);
+  A.block(3, 3, 2, 2) = J1;
+  A.block(7, 7, 3, 3) = J3;
+  A.block(13, 13, 2, 2) = J5;
+  EXPECT_TRUE(matrices_near(f.state.full_covariance(), A * f.P * A.transpose(), 1e-14));
+
+  const Eigen::MatrixXd before = f.state.full_covariance();
+  EXPECT_THROW(f.state.transform_perturbations({{f.ids[1], J1}, {f.ids[1], J1}}), std::invalid_argument);
+  EXPECT_THROW(f.state.transform_perturbations({{f.ids[3], J1}}), std::invalid_argument);
+  EXPECT_TRUE(matrices_near(f.state.full_covariance(), before, 0.0));  // a rejected call changes nothing
+  f.state.transform_perturbations({});
+  EXPECT_TRUE(matrices_near(f.state.full_covariance(), before, 0.0));
+}
+
 TEST(GlobalStateTest, EkfUpdateMatchesDenseFormulaAndDropsRedundantRows) {
   std::mt19937 rng(5);
   Fixture f(rng);
