@@ -120,25 +120,32 @@ bool dropped_rows_consistent(const Eigen::MatrixXd& S, const Eigen::VectorXd& nu
   return true;
 }
 
-Chi2Result chi2_test(const GlobalState& state, const spmap::ImplicitMeasurement& m, Chi2Table& chi2,
+// The test of one measurement (innovation h) from its block S of a joint
+// innovation covariance and that block's reference scale.
+Chi2Result chi2_test(const Eigen::MatrixXd& S, const Eigen::VectorXd& h, double reference_scale, Chi2Table& chi2,
                      double relative_tolerance, double absolute_floor) {
   Chi2Result r;
-  const GlobalState::Innovation in = state.innovation(m);
-  const double scale = std::max(in.reference_scale, absolute_floor / relative_tolerance);
-  const spmap::CarefulInverse ci = spmap::careful_inverse(in.S, relative_tolerance, scale);
+  const double scale = std::max(reference_scale, absolute_floor / relative_tolerance);
+  const spmap::CarefulInverse ci = spmap::careful_inverse(S, relative_tolerance, scale);
   const auto k = static_cast<Eigen::Index>(ci.kept.size());
-  const double pivot_threshold = relative_tolerance * std::max(in.S.diagonal().cwiseAbs().maxCoeff(), scale);
-  if (!dropped_rows_consistent(in.S, m.h, ci, pivot_threshold, chi2)) return r;
+  const double pivot_threshold = relative_tolerance * std::max(S.diagonal().cwiseAbs().maxCoeff(), scale);
+  if (!dropped_rows_consistent(S, h, ci, pivot_threshold, chi2)) return r;
   if (k == 0) {
     r.passed = true;
     return r;
   }
   Eigen::VectorXd h_k(k);
-  for (Eigen::Index i = 0; i < k; ++i) h_k(i) = m.h(ci.kept[static_cast<std::size_t>(i)]);
+  for (Eigen::Index i = 0; i < k; ++i) h_k(i) = h(ci.kept[static_cast<std::size_t>(i)]);
   r.dof = static_cast<int>(k);
   r.distance2 = h_k.dot(ci.inverse * h_k);
   r.passed = r.distance2 < chi2(r.dof);
   return r;
+}
+
+Chi2Result chi2_test(const GlobalState& state, const spmap::ImplicitMeasurement& m, Chi2Table& chi2,
+                     double relative_tolerance, double absolute_floor) {
+  const GlobalState::Innovation in = state.innovation(m);
+  return chi2_test(in.S, m.h, in.reference_scale, chi2, relative_tolerance, absolute_floor);
 }
 
 // A segment as the gate sees it: midpoint and direction in its parent frame,
@@ -199,6 +206,7 @@ struct Candidate {
   EntityId local_segment = 0;
   std::size_t local_index = 0;
   spmap::ImplicitMeasurement measurement;
+  Eigen::Index row = 0;  // its first row in the gated pairs' joint innovation
   double distance2 = 0.0;
 };
 
@@ -733,15 +741,29 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
   rep.time.gate_s = clock.lap();
 
   // Individual compatibility (eq. 8) and overlap test; several pairings per
-  // local segment are allowed (no nearest neighbour).
-  std::vector<Candidate> candidates;
+  // local segment are allowed (no nearest neighbour). One joint innovation
+  // covariance of all gated pairs serves both tests: each individual S is a
+  // diagonal block of it, the joint test's S the block of the candidates.
+  std::vector<spmap::ImplicitMeasurement> gated_measurements;
+  gated_measurements.reserve(gated.size());
   for (const auto& [global_id, j] : gated) {
+    gated_measurements.push_back(pairing_measurement(state_, global_id, locals[j].id));
+  }
+  const GlobalState::Innovation gated_in =
+      gated.empty() ? GlobalState::Innovation{} : state_.innovation(gated_measurements);
+  std::vector<Candidate> candidates;
+  Eigen::Index row = 0;
+  for (std::size_t g = 0; g < gated.size(); ++g) {
     Candidate c;
-    c.global_segment = global_id;
-    c.local_segment = locals[j].id;
-    c.local_index = j;
-    c.measurement = pairing_measurement(state_, c.global_segment, c.local_segment);
-    const Chi2Result t = chi2_test(state_, c.measurement, chi2, rel, floor);
+    c.global_segment = gated[g].first;
+    c.local_index = gated[g].second;
+    c.local_segment = locals[c.local_index].id;
+    c.measurement = std::move(gated_measurements[g]);
+    c.row = row;
+    const Eigen::Index dim = c.measurement.h.size();
+    row += dim;
+    const Chi2Result t = chi2_test(gated_in.S.block(c.row, c.row, dim, dim), c.measurement.h,
+                                   gated_in.row_scale.segment(c.row, dim).maxCoeff(), chi2, rel, floor);
     if (!t.passed) {
       ++rep.chi2_rejected;
       continue;
@@ -769,13 +791,26 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
   std::vector<std::size_t> accepted;  // indices into candidates
   std::vector<spmap::ImplicitMeasurement> accepted_measurements;
   if (!candidates.empty()) {
-    std::vector<spmap::ImplicitMeasurement> all;
-    all.reserve(candidates.size());
-    for (const std::size_t c : order) all.push_back(candidates[c].measurement);
-    const GlobalState::Innovation in = state_.innovation(all);
-    const Eigen::MatrixXd& S_all = in.S;
-    const Eigen::VectorXd h_all = spmap::stacked_value(all);
-    const double threshold = rel * std::max({S_all.diagonal().maxCoeff(), in.reference_scale, floor / rel});
+    // The candidates' rows of the gated innovation, in test order.
+    std::vector<Eigen::Index> rows;
+    for (const std::size_t c : order) {
+      for (Eigen::Index i = 0; i < candidates[c].measurement.h.size(); ++i) rows.push_back(candidates[c].row + i);
+    }
+    const auto m_all = static_cast<Eigen::Index>(rows.size());
+    Eigen::MatrixXd S_all(m_all, m_all);
+    Eigen::VectorXd h_all(m_all);
+    double candidates_scale = 0.0;
+    for (Eigen::Index a = 0; a < m_all; ++a) {
+      const Eigen::Index ra = rows[static_cast<std::size_t>(a)];
+      for (Eigen::Index b = 0; b < m_all; ++b) S_all(a, b) = gated_in.S(ra, rows[static_cast<std::size_t>(b)]);
+      candidates_scale = std::max(candidates_scale, gated_in.row_scale(ra));
+    }
+    Eigen::Index filled = 0;
+    for (const std::size_t c : order) {
+      h_all.segment(filled, candidates[c].measurement.h.size()) = candidates[c].measurement.h;
+      filled += candidates[c].measurement.h.size();
+    }
+    const double threshold = rel * std::max({S_all.diagonal().maxCoeff(), candidates_scale, floor / rel});
     std::vector<Eigen::Index> K;  // kept rows of S_all
     Eigen::MatrixXd S_K_inv(0, 0);
     Eigen::VectorXd h_K(0);
@@ -806,7 +841,7 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
         continue;
       }
       accepted.push_back(order[c]);
-      accepted_measurements.push_back(all[c]);
+      accepted_measurements.push_back(candidates[order[c]].measurement);
       d2 = d2_new;
       dof = dof_new;
       if (kc == 0) continue;

@@ -503,9 +503,9 @@ Eigen::MatrixXd GlobalState::touched_marginal(const Stacked& st, const Eigen::Ma
   return M;
 }
 
-double GlobalState::scale_of(const Stacked& st, const Eigen::MatrixXd& P_tt) {
-  // max_i (Σ_blocks J P_EE Jᵀ + R)_ii: the diagonal blocks of P only, over
-  // H's nonzero blocks.
+Eigen::VectorXd GlobalState::row_scales(const Stacked& st, const Eigen::MatrixXd& P_tt) {
+  // (Σ_blocks J P_EE Jᵀ + R)_ii: the diagonal blocks of P only, over H's
+  // nonzero blocks.
   Eigen::VectorXd diag = st.R.diagonal();
   for (const Stacked::Block& b : st.blocks) {
     const Eigen::Index c = st.column[b.touched];
@@ -513,7 +513,7 @@ double GlobalState::scale_of(const Stacked& st, const Eigen::MatrixXd& P_tt) {
     const auto J = st.H.block(b.row, c, b.rows, d);
     diag.segment(b.row, b.rows) += J.lazyProduct(P_tt.block(c, c, d, d)).cwiseProduct(J).rowwise().sum();
   }
-  return diag.size() > 0 ? diag.maxCoeff() : 0.0;
+  return diag;
 }
 
 Eigen::MatrixXd GlobalState::touched_rows(const Stacked& st, const Eigen::MatrixXd& PHt) {
@@ -543,7 +543,8 @@ GlobalState::Innovation GlobalState::innovation_of(const Stacked& st) const {
   // H P_tt Hᵀ + R = ((P_tt Hᵀ)ᵀ Hᵀ) + R, P_tt symmetric.
   out.S = st.times_Ht(st.times_Ht(P_tt).transpose()) + st.R;
   out.S = (0.5 * (out.S + out.S.transpose())).eval();
-  out.reference_scale = scale_of(st, P_tt);
+  out.row_scale = row_scales(st, P_tt);
+  out.reference_scale = out.row_scale.size() > 0 ? out.row_scale.maxCoeff() : 0.0;
   return out;
 }
 
@@ -600,7 +601,8 @@ StateUpdateReport GlobalState::ekf_update(const std::vector<spmap::ImplicitMeasu
 
   // DESIGN §6: full-pivot Gauss–Jordan; drop the rows whose pivots fall below
   // the threshold (relative to the scale of S, never below the absolute floor).
-  const double scale = std::max(scale_of(st, P_tt), absolute_floor / relative_tolerance);
+  const Eigen::VectorXd row_scale = row_scales(st, P_tt);
+  const double scale = std::max(row_scale.maxCoeff(), absolute_floor / relative_tolerance);
   const spmap::CarefulInverse ci = spmap::careful_inverse(S, relative_tolerance, scale);
   report.rows_dropped = static_cast<int>(ci.dropped.size());
   const auto k = static_cast<Eigen::Index>(ci.kept.size());

@@ -130,8 +130,11 @@ class GlobalState {
   // the largest diagonal of S as if the touched entities were uncorrelated,
   // max_i (Σ_blocks J P_EE Jᵀ + R)_ii (the rule of spmap::innovation_reference_scale).
   // A relation the state already knows has S ≈ 0 (rounding) while this is not small.
+  // row_scale holds that diagonal row by row, so a diagonal block of S (one
+  // measurement of the stack) carries its own scale: the max over its rows.
   struct Innovation {
     Eigen::MatrixXd S;
+    Eigen::VectorXd row_scale;
     double reference_scale = 0.0;
   };
   Innovation innovation(const std::vector<spmap::ImplicitMeasurement>& measurements) const;
@@ -195,7 +198,7 @@ class GlobalState {
   Eigen::MatrixXd touched_marginal(const Stacked& st, const Eigen::MatrixXd* columns) const;
   // P(touched, :) Hᵀ (t x m): the touched rows of P Hᵀ, in H's column order.
   static Eigen::MatrixXd touched_rows(const Stacked& st, const Eigen::MatrixXd& PHt);
-  static double scale_of(const Stacked& st, const Eigen::MatrixXd& P_tt);
+  static Eigen::VectorXd row_scales(const Stacked& st, const Eigen::MatrixXd& P_tt);
   void write_marginal(const std::vector<EntityId>& ids, const Eigen::MatrixXd& M, bool accumulate);
 
   std::vector<Entity> entities_;
