@@ -218,6 +218,7 @@ void AgentNode::process(const rt::RobotScan& scan) {
   ++counters_.scans_processed;
   if (report.scan_match_tried) ++counters_.scans_match_tried;
   if (report.scan_matched) ++counters_.scans_matched;
+  counters_.segments_seen_through += report.segments_seen_through;
   if (!report.covariance_health.ok()) {
     window_covariance_ok_ = false;
     if (counters_.covariance_always_ok) {

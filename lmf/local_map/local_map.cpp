@@ -178,7 +178,31 @@ ScanReport LocalMap::process_scan(const LaserScan& scan) {
   }
   report = update_with(scan.utime, scan.odometry, extract_segments(scan, config_.extraction), motion, report);  // step 2
   if (matching.enabled) reference_scan_ = ReferenceScan::from(scan, matching);
+  if (config_.see_through.enabled) {
+    report.segments_seen_through = remove_seen_through(scan);
+    report.map_segments = static_cast<int>(num_segments());
+  }
   return report;
+}
+
+// Free-space evidence: segments the scan sees through are removed (marginalised
+// out of the map: deleting an entity's rows and columns of P is exact).
+int LocalMap::remove_seen_through(const LaserScan& scan) {
+  const std::vector<EntityId> ids = segment_ids();
+  const Pose2 x_LR_hat = x_LR();
+  std::vector<SensorSegment> in_sensor;
+  in_sensor.reserve(ids.size());
+  for (const EntityId id : ids) in_sensor.push_back({between(x_LR_hat, map_.root_location(id)), map_.entity(id).length_m});
+  const std::vector<SeeThroughCount> counts =
+      count_see_through(scan, in_sensor, config_.extraction.min_range_m, max_valid_range(scan, config_.extraction),
+                        config_.see_through);
+  int removed = 0;
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    if (!counts[i].seen_through(config_.see_through)) continue;
+    map_.remove(ids[i]);
+    ++removed;
+  }
+  return removed;
 }
 
 // ---------------------------------------------------------------------------

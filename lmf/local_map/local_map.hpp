@@ -88,6 +88,8 @@ struct ScanReport {
   int constraints_applied = 0;        // rows given to the update
   int constraint_rows_dropped = 0;    // of those, dropped by the careful inversion (redundant)
 
+  int segments_seen_through = 0;  // removed after the scan: most beams crossing them passed through (see_through)
+
   int map_segments = 0;  // after the scan
   Pose2 x_LR;            // robot pose estimate after the scan
   bool covariance_checked = false;  // covariance_health is filled (LocalMapConfig::covariance_check_interval)
@@ -188,6 +190,7 @@ class LocalMap {
                                             const std::vector<bool>& had_candidate,
                                             const std::vector<Pairing>& pairings, ScanReport& report);
   void apply_constraints(const std::vector<spmap::EntityId>& added, ScanReport& report);
+  int remove_seen_through(const LaserScan& scan);
   spmap::EntityId add_observation(const ObservedSegment& observation);
 
   // Groups of segments whose relative angles are perfectly known (joined by

@@ -56,6 +56,7 @@ void LocalMapConfig::validate() const {
           "finite and >= 0");
   extraction.validate();
   scan_matching.validate();
+  see_through.validate();
 }
 
 }  // namespace lmf

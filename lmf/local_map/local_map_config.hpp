@@ -5,6 +5,7 @@
 #include <cstddef>
 
 #include "lmf/scan/scan_matcher.hpp"
+#include "lmf/scan/see_through.hpp"
 #include "lmf/scan/segment_extraction.hpp"
 
 namespace lmf {
@@ -97,6 +98,11 @@ struct LocalMapConfig {
   // prior (scan_matcher.hpp) and predicts with the match and its covariance;
   // when the match fails it predicts with the odometry as usual.
   ScanMatcherConfig scan_matching;
+
+  // Free-space evidence (beyond the paper; on by default): after each scan,
+  // LocalMap::process_scan removes the map segments that most beams crossing
+  // them pass through (see_through.hpp): other robots, people, false extractions.
+  SeeThroughConfig see_through;
 
   // Throws std::invalid_argument naming the first invalid field and its value.
   void validate() const;

@@ -36,6 +36,15 @@ void read_local_map_config(io::JsonReader& reader, LocalMapConfig& config) {
   if (io::JsonReader* scan_matching = reader.optional_section("scan_matching")) {
     read_scan_matcher_config(*scan_matching, config.scan_matching);
   }
+  if (io::JsonReader* see_through = reader.optional_section("see_through")) {
+    see_through->read("enabled", config.see_through.enabled);
+    see_through->read("margin_m", config.see_through.margin_m, io::positive());
+    see_through->read("end_margin_m", config.see_through.end_margin_m, io::non_negative());
+    see_through->read("min_incidence_rad", config.see_through.min_incidence_rad, io::non_negative());
+    see_through->read("min_beams", config.see_through.min_beams);
+    see_through->read("min_fraction", config.see_through.min_fraction, io::positive());
+    see_through->read("min_coverage", config.see_through.min_coverage, io::non_negative());
+  }
 }
 
 LocalMapConfig load_local_map_config(const std::filesystem::path& file) {

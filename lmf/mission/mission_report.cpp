@@ -198,6 +198,7 @@ void write_mission_outputs(const std::filesystem::path& out, const OfflineMissio
                       {"scans", r.scans},
                       {"local_maps_shipped", r.local_maps_shipped},
                       {"local_maps_fused", r.local_maps_fused},
+                      {"segments_seen_through", r.segments_seen_through},
                       {"scan_timing", to_json(r.scan_timing)},
                       {"covariance_always_ok", r.covariance_always_ok},
                       {"first_covariance_problem", r.first_covariance_problem}});
@@ -261,6 +262,9 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
                   rs ? std::to_string(rs->odometry_ate.position_rmse_m).substr(0, 6).c_str() : "-");
     s << line;
   }
+  std::size_t seen_through = 0;
+  for (const RobotResult& r : result.robots) seen_through += r.segments_seen_through;
+  s << "local maps: " << seen_through << " segments removed as seen through (free-space evidence)\n";
   const fusion::MapCounts counts = mission.global_map().counts();
   std::snprintf(line, sizeof line,
                 "map: %d segments, %d submaps, %d graph edges; %zu fusions (median %.1f ms, max %.1f ms); "

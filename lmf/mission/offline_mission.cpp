@@ -116,6 +116,7 @@ void OfflineMission::process_scan(Agent& agent, RobotResult& result) {
   const ScanReport report = agent.local_map.process_scan(scan);
   result.scan_times_ms.push_back(elapsed_ms(start));
   ++result.scans;
+  result.segments_seen_through += static_cast<std::size_t>(report.segments_seen_through);
   if (!report.covariance_health.ok() && result.covariance_always_ok) {
     result.covariance_always_ok = false;
     result.first_covariance_problem = report.covariance_health.describe();

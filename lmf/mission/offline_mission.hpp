@@ -45,6 +45,7 @@ struct RobotResult {
   std::size_t scans = 0;
   std::size_t local_maps_shipped = 0;
   std::size_t local_maps_fused = 0;
+  std::size_t segments_seen_through = 0;  // local map segments removed on free-space evidence
   std::vector<StampedPose> trajectory;  // final estimate of every scan pose in W (joined robots)
   std::vector<double> scan_times_ms;    // per-scan local map time
   TimingStats scan_timing;

@@ -85,11 +85,20 @@ double distance_to_line(const Eigen::Vector2d& p, const LineFit& fit) {
   return std::abs(fit.normal.dot(p - fit.centroid));
 }
 
+}  // namespace
+
+double max_valid_range(const LaserScan& scan, const ExtractionConfig& config) {
+  double upper_m = config.max_range_m;
+  if (scan.max_range_m > 0.0) upper_m = std::min(upper_m, scan.max_range_m - config.no_return_margin_m);
+  return upper_m;
+}
+
+namespace {
+
 // Step 2: clusters of consecutive valid beams closer than max_point_gap_m.
 std::vector<Range> make_clusters(const LaserScan& scan, const ExtractionConfig& config,
                                  std::vector<ScanPoint>& points) {
-  double upper_m = config.max_range_m;
-  if (scan.max_range_m > 0.0) upper_m = std::min(upper_m, scan.max_range_m - config.no_return_margin_m);
+  const double upper_m = max_valid_range(scan, config);
   std::vector<Range> clusters;
   bool previous_valid = false;
   for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {

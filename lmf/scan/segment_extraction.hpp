@@ -78,6 +78,9 @@ struct ExtractedSegment {
 // along the segment oriented so the sensor lies on its left (+y); first_point
 // lies on its -x end. Throws std::invalid_argument when `config` is invalid;
 // bad readings (NaN, negative, no return) are skipped, never an error.
+// The readings step 1 keeps as returns: [min_range_m, this).
+double max_valid_range(const LaserScan& scan, const ExtractionConfig& config);
+
 std::vector<ObservedSegment> extract_segments(const LaserScan& scan, const ExtractionConfig& config);
 
 // Same as extract_segments, with the supporting beams and fit residuals.

@@ -595,5 +595,50 @@ TEST(LocalMapScanMatching, PredictionWithTheMatchBeatsTheOdometry) {
   EXPECT_LT(with, 0.85 * without) << "with matching " << with << ", without " << without;
 }
 
+// Free-space evidence (LocalMapConfig::see_through): a box face seen by the
+// first scans (another robot standing there) and gone from the later ones is
+// removed once the beams pass through where it was; the room's walls stay.
+TEST(LocalMapSeeThrough, AnObjectThatLeavesIsRemovedAndTheWallsStay) {
+  testing::SyntheticWorld room;
+  room.walls = {{{-2.0, -4.0}, {9.0, -4.0}}, {{9.0, -4.0}, {9.0, 5.0}}, {{9.0, 5.0}, {-2.0, 5.0}},
+                {{-2.0, 5.0}, {-2.0, -4.0}}};
+  testing::SyntheticWorld with_object = room;
+  with_object.walls.push_back({{4.0, 0.5}, {4.0, 1.3}});
+  std::mt19937 rng(5);
+  std::vector<LaserScan> scans;
+  for (int k = 0; k < 14; ++k) {
+    const Pose2 x_WR(0.1 * k, 0.0, 0.0);
+    LaserScan scan = testing::make_scan(k < 6 ? with_object : room, x_WR, 361, 80.0, 0.005, &rng);
+    scan.utime = k * kScanPeriodUs;
+    scan.odometry = x_WR;
+    scans.push_back(scan);
+  }
+  const auto object_segments = [](const LocalMap& lm) {
+    int n = 0;
+    for (const EntityId id : lm.segment_ids()) {
+      const Pose2 x = lm.map().root_location(id);
+      if (std::abs(x.x - 4.0) < 0.2 && x.y > 0.3 && x.y < 1.5) ++n;
+    }
+    return n;
+  };
+  for (const bool enabled : {true, false}) {
+    LocalMapConfig config;
+    config.see_through.enabled = enabled;
+    LocalMap lm(config);
+    int removed = 0;
+    for (std::size_t k = 0; k < scans.size(); ++k) {
+      const ScanReport r = lm.process_scan(scans[k]);
+      removed += r.segments_seen_through;
+      EXPECT_EQ(r.map_segments, static_cast<int>(lm.num_segments()));
+      if (k == 5) EXPECT_EQ(object_segments(lm), 1) << "the object is mapped while it is there";
+      if (k < 6) EXPECT_EQ(r.segments_seen_through, 0) << k;
+      EXPECT_TRUE(lm.check_covariance().ok()) << k;
+    }
+    EXPECT_EQ(object_segments(lm), enabled ? 0 : 1) << "see_through.enabled = " << enabled;
+    EXPECT_EQ(removed, enabled ? 1 : 0);
+    EXPECT_EQ(lm.num_segments(), enabled ? 3u : 4u);  // the three walls in view stay
+  }
+}
+
 }  // namespace
 }  // namespace lmf
