@@ -28,7 +28,8 @@ int main(int argc, char** argv) {
   description.add_options()
       ("json", po::bool_switch(&options.json), "print one JSON object per refresh (JSON lines) instead of the table")
       ("log", po::value<std::string>(&log_file),
-       "read this lcm-logger file instead of the network, process every event, print, exit")
+       "read this lcm-logger file instead of the network, process every event, print, exit (with --keys: "
+       "only correctly signed, fresh, allowed messages; the others are counted and reported)")
       ("svg", po::value<std::string>(&map_svg), "write the global map (from global_map_t) to this SVG file")
       ("timing-svg", po::value<std::string>(&timing_svg),
        "write the per-robot update times over the mission with the 200 ms bound (paper Fig. 8) to this SVG file")
@@ -49,9 +50,16 @@ int main(int argc, char** argv) {
     const lmf::runtime::Channels channels(common.channel_prefix);
 
     if (!log_file.empty()) {
+      // With --keys the capture's signatures are checked as the live monitor would.
+      const auto keys = lmf::runtime::auth_config_or_exit(common, "monitor", kProgram);
       lmf::monitor::MonitorNode node(channels, options, std::cout);
-      const std::int64_t events = node.replay_log(log_file);
-      std::cerr << kProgram << ": " << events << " events read from " << log_file << '\n';
+      const std::int64_t events = node.replay_log(log_file, keys);
+      std::cerr << kProgram << ": " << events << " events read from " << log_file;
+      if (keys) {
+        std::cerr << "; signatures checked, " << node.log_rejections().total() << " rejected";
+        for (const auto& [reason, count] : node.log_rejections().nonzero()) std::cerr << ' ' << reason << '=' << count;
+      }
+      std::cerr << '\n';
       return 0;
     }
 

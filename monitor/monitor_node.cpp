@@ -116,9 +116,15 @@ bool MonitorNode::refresh(std::int64_t now_utime) {
   return ok;
 }
 
-std::int64_t MonitorNode::replay_log(const std::filesystem::path& file) {
+std::int64_t MonitorNode::replay_log(const std::filesystem::path& file,
+                                     const std::optional<runtime::auth::Config>& keys) {
   lcm::LogFile log(file.string(), "r");
   if (!log.good()) throw std::runtime_error(file.string() + ": cannot open as an lcm-logger file");
+  std::optional<runtime::auth::Verifier> verifier;
+  if (keys) {
+    keys->validate();
+    verifier.emplace(keys->keys, keys->replay_window);
+  }
   const std::int64_t period_us = std::chrono::duration_cast<std::chrono::microseconds>(options_.refresh).count();
   std::int64_t events = 0;
   std::optional<std::int64_t> next_refresh;
@@ -135,10 +141,23 @@ std::int64_t MonitorNode::replay_log(const std::filesystem::path& file) {
       const std::int64_t skipped = (event->timestamp - *next_refresh) / period_us;
       *next_refresh += (skipped + 1) * period_us;
     }
-    // A capture of a system running with --keys holds signed messages: read
-    // their LCM part (unverified: a capture file is trusted as a whole).
-    const std::size_t size = runtime::auth::unverified_payload_size(event->data, static_cast<std::size_t>(event->datalen));
-    handle(event->channel, event->data, size, event->timestamp);
+    const auto* bytes = static_cast<const std::uint8_t*>(event->data);
+    const auto length = static_cast<std::size_t>(event->datalen);
+    const bool system_channel = event->channel.rfind(channels_.prefix(), 0) == 0;
+    if (!verifier || !system_channel) {
+      // A capture of a system running with --keys holds signed messages: their
+      // LCM part, unchecked (the capture file is trusted as a whole). Other
+      // channels (LCM's own self test) are never shown, only counted.
+      handle(event->channel, event->data, runtime::auth::unverified_payload_size(bytes, length), event->timestamp);
+      continue;
+    }
+    const auto payload = verifier->verify(event->channel, {bytes, length});
+    if (!payload) {
+      log_rejections_.record(payload.rejection(), file.string() + " event " + std::to_string(event->eventnum) +
+                                                      " on " + event->channel);
+      continue;
+    }
+    handle(event->channel, payload.value().data(), payload.value().size(), event->timestamp);
   }
   refresh(last_time);
   return events;

@@ -21,9 +21,11 @@
 #include <vector>
 
 #include "monitor/monitor_state.hpp"
+#include "runtime/auth.hpp"
 #include "runtime/bus.hpp"
 #include "runtime/channels.hpp"
 #include "runtime/event_loop.hpp"
+#include "runtime/rejection.hpp"
 
 namespace lmf::monitor {
 
@@ -57,9 +59,17 @@ class MonitorNode {
 
   // Reads every event of an lcm-logger file through handle(), refreshing every
   // refresh period of log time (JSON mode) and once at the end (both modes).
-  // Returns the number of events read; throws std::runtime_error if the file
-  // cannot be opened.
-  std::int64_t replay_log(const std::filesystem::path& file);
+  // With `keys` (a capture of a system running with --keys, and the keys of
+  // every sender in it, as the monitor's keys file holds them), each event must
+  // carry a valid signature of a sender allowed to send it, fresh for that
+  // sender (events on channels outside the system's prefix, never shown, are
+  // only counted): the others are counted (log_rejections()), reported on stderr with
+  // their file and event number, and skipped. Without keys a signed capture's
+  // trailers are stripped unchecked. Returns the number of events read; throws
+  // std::runtime_error if the file cannot be opened.
+  std::int64_t replay_log(const std::filesystem::path& file,
+                          const std::optional<runtime::auth::Config>& keys = std::nullopt);
+  const runtime::RejectCounter& log_rejections() const { return log_rejections_; }
 
   const MonitorState& state() const { return state_; }
 
@@ -77,6 +87,7 @@ class MonitorNode {
   std::size_t written_timing_samples_ = 0;
   std::vector<int> subscriptions_;
   std::optional<int> timer_;
+  runtime::RejectCounter log_rejections_;
 };
 
 }  // namespace lmf::monitor

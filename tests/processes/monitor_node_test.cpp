@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "monitor/monitor_node.hpp"
+#include "runtime/auth.hpp"
 #include "runtime/bus.hpp"
 #include "runtime/channels.hpp"
 #include "runtime/convert.hpp"
@@ -265,6 +266,71 @@ TEST(MonitorNode, ReadsAnLcmLoggerFile) {
   EXPECT_EQ(exe_lines.back()["server"]["fusions"], 15);
   EXPECT_NE(std::system((std::string(LMF_MONITOR_EXE) + " --log /nonexistent.log 2>/dev/null").c_str()), 0);
 #endif
+}
+
+// A capture of a system running with --keys: with the monitor's keys only
+// correctly signed, fresh, allowed messages count; without keys every message
+// is read (its trailer stripped unchecked).
+TEST(MonitorNode, ChecksTheSignaturesOfACaptureWithKeys) {
+  namespace auth = rt::auth;
+  const auto dir = std::filesystem::path(::testing::TempDir()) / "lmf_monitor_signed_log";
+  std::filesystem::create_directories(dir);
+  const auto log_path = dir / "signed.lcmlog";
+  const rt::Channels channels;
+  const auto files = auth::make_system_keys({0, 1});
+  const auto key_of = [&](const std::string& principal) { return *files.at(principal).find(principal); };
+  auth::Signer robot0(auth::robot_principal(0), key_of(auth::robot_principal(0)), 1);
+  auth::Signer robot1(auth::robot_principal(1), key_of(auth::robot_principal(1)), 1);
+  {
+    lcm::LogFile log(log_path.string(), "w");
+    ASSERT_TRUE(log.good());
+    std::int64_t eventnum = 0;
+    const auto write = [&](const std::string& channel, const std::vector<std::uint8_t>& bytes) {
+      lcm::LogEvent e;
+      e.eventnum = eventnum;
+      e.timestamp = 1'700'000'000'000'000 + 100'000 * eventnum;
+      ++eventnum;
+      e.channel = channel;
+      e.datalen = static_cast<int32_t>(bytes.size());
+      e.data = const_cast<std::uint8_t*>(bytes.data());
+      ASSERT_EQ(log.writeEvent(&e), 0);
+    };
+    const auto signed_by = [&](auth::Signer& signer, const std::string& channel, const auto& msg) {
+      const std::vector<std::uint8_t> payload = rt::encode_message(msg);
+      std::vector<std::uint8_t> out;
+      signer.sign(channel, payload, out);
+      return out;
+    };
+    const std::vector<std::uint8_t> good = signed_by(robot0, channels.agent_status(), agent_status(0, 1, 5.0f));
+    write(channels.agent_status(), good);
+    write(channels.agent_status(), signed_by(robot1, channels.agent_status(), agent_status(1, 2, 5.0f)));
+    write(channels.agent_status(), good);  // replayed
+    std::vector<std::uint8_t> tampered = signed_by(robot0, channels.agent_status(), agent_status(0, 3, 5.0f));
+    tampered[10] ^= 0x01;
+    write(channels.agent_status(), tampered);
+    write(channels.agent_status(), rt::encode_message(agent_status(1, 4, 5.0f)));  // unsigned
+    // A robot may not speak for the server.
+    write(channels.server_status(), signed_by(robot1, channels.server_status(), server_status(7)));
+    // LCM's own self test, outside the system's channels: counted, not checked.
+    write("LCM_SELF_TEST", std::vector<std::uint8_t>{'l', 'c', 'm'});
+  }
+
+  lmf::monitor::MonitorOptions options;
+  options.json = true;
+  const auto monitor_keys = auth::Config{"monitor", std::make_shared<const auth::KeyRing>(files.at("monitor"))};
+  std::ostringstream checked_out;
+  lmf::monitor::MonitorNode checked(channels, options, checked_out);
+  EXPECT_EQ(checked.replay_log(log_path, monitor_keys), 7);
+  EXPECT_EQ(checked.log_rejections().total(), 4);
+  EXPECT_EQ(parse_lines(checked_out.str()).back()["messages"], 3);
+  EXPECT_TRUE(parse_lines(checked_out.str()).back()["server"].is_null()) << "the forged server status was skipped";
+
+  std::ostringstream unchecked_out;
+  lmf::monitor::MonitorNode unchecked(channels, options, unchecked_out);
+  EXPECT_EQ(unchecked.replay_log(log_path), 7);
+  EXPECT_EQ(unchecked.log_rejections().total(), 0);
+  EXPECT_EQ(parse_lines(unchecked_out.str()).back()["messages"], 7);
+  EXPECT_EQ(parse_lines(unchecked_out.str()).back()["server"]["fusions"], 7);
 }
 
 }  // namespace
