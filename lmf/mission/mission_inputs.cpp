@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <fstream>
+#include <optional>
 #include <stdexcept>
 
 #include <nlohmann/json.hpp>
@@ -130,9 +131,27 @@ MissionInputs load_logs(const std::vector<std::filesystem::path>& logs, int spli
 MissionInputs load_sim_folder(const std::filesystem::path& dir, const SightingNoise& noise) {
   if (!std::filesystem::is_directory(dir)) throw std::invalid_argument(dir.string() + ": not a folder");
   MissionInputs inputs;
-  for (int id = 0;; ++id) {
+  // mission.json (lmf-sim writes it) says how many robots the mission has, so
+  // robotN files left in the folder by an earlier, larger mission are not
+  // replayed as extra robots; without it, robot0, robot1, ... up to the first gap.
+  std::optional<int> robots;
+  const auto mission_file = dir / "mission.json";
+  if (std::filesystem::exists(mission_file)) {
+    const nlohmann::json doc = io::read_json_file(mission_file);
+    if (!doc.contains("robots") || !doc["robots"].is_array()) {
+      throw std::invalid_argument(mission_file.string() + ": no \"robots\" array");
+    }
+    robots = static_cast<int>(doc["robots"].size());
+  }
+  for (int id = 0; !robots || id < *robots; ++id) {
     const auto log_file = dir / ("robot" + std::to_string(id) + ".log");
-    if (!std::filesystem::exists(log_file)) break;
+    if (!std::filesystem::exists(log_file)) {
+      if (robots) {
+        throw std::invalid_argument(mission_file.string() + " lists " + std::to_string(*robots) + " robots but " +
+                                    log_file.string() + " is missing");
+      }
+      break;
+    }
     RobotLog robot;
     robot.robot_id = id;
     robot.name = "robot" + std::to_string(id);

@@ -62,7 +62,9 @@ MissionInputs load_logs(const std::vector<std::filesystem::path>& logs, int spli
                         const std::filesystem::path& reference, const SightingNoise& noise);
 
 // An lmf-sim folder: robotN.log, robotN.gt, sightings.json (true x_AB; noise is
-// added here). Robot 0 defines W; the others join through sightings.
+// added here), for the robots mission.json lists (without mission.json: robot0,
+// robot1, ... up to the first missing log). Robot 0 defines W; the others join
+// through sightings.
 MissionInputs load_sim_folder(const std::filesystem::path& dir, const SightingNoise& noise);
 
 }  // namespace lmf::mission

@@ -73,6 +73,29 @@ TEST(OfflineMission, RepeatedRunsAreIdentical) {
   }
 }
 
+// Files of an earlier, larger mission left in the folder are not replayed:
+// mission.json says how many robots there are.
+TEST(OfflineMission, SimFolderReadsTheRobotsItsMissionLists) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("lmf_mission_stale_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  for (const char* name : {"mission.json", "robot0.log", "robot0.gt", "robot1.log", "robot1.gt", "sightings.json",
+                           "walls.json"}) {
+    std::filesystem::copy_file(simulated_folder() / name, dir / name);
+  }
+  std::filesystem::copy_file(dir / "robot1.log", dir / "robot2.log");  // stale
+  EXPECT_EQ(load_sim_folder(dir, SightingNoise{}).robots.size(), 2u);
+  std::filesystem::remove(dir / "robot1.log");
+  try {
+    load_sim_folder(dir, SightingNoise{});
+    ADD_FAILURE() << "a robot the mission lists is missing";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("robot1.log is missing"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove_all(dir);
+}
+
 TEST(OfflineMission, RejectsDuplicateRobotIds) {
   MissionInputs inputs;
   inputs.robots.resize(2);
