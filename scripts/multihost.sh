@@ -50,9 +50,11 @@ for b in "${bins[@]}"; do
   fi
 done
 
+# Nothing of an earlier run may count in this one (a 3-robot run's robot2 files
+# and logs would be read as a third robot here).
+rm -rf "$out/sim" "$out/logs" "$out/hosts" "$out/trajectories" "$out/report.json"
 echo "== simulating a $robots-robot, ${duration}-second mission (seed $seed) into $out/sim"
 "$build/tools/lmf-sim" --robots "$robots" --seed "$seed" --duration-s "$duration" --out "$out/sim" >"$out/sim.log"
-rm -f "$out/report.json" "$out"/trajectories/robot*.txt
 
 echo "== running each process on its own machine (private namespaces, timeout ${timeout_s} s)"
 # timeout runs in its own process group: on a signal the trap stops that group
