@@ -117,6 +117,7 @@ struct ServerNode::Outcome {
   int robot_id = 0;
   std::int64_t seq = 0;
   std::optional<runtime::Rejection> rejection;  // the GlobalMap refused the input
+  std::optional<runtime::Sighting> sighting;    // kSighting: the one applied
   bool queued_in_map = false;                   // local map held until its robot joins
   std::vector<std::pair<int, std::int64_t>> fused;  // (robot, seq) fused by this task
   MapView view;
@@ -232,15 +233,24 @@ void ServerNode::on_sighting(const void* data, std::size_t size) {
     rejects_.record({runtime::RejectReason::kUnknownRobot,
                      where + ": robot id not below --max-robots " + std::to_string(options_.max_robots)},
                     channels_.sighting());
+    publish_sighting_ack(s, runtime::SightingAck::Status::kRejected);
     return;
   }
   if (s.observer_id == s.observed_id) {
     rejects_.record({runtime::RejectReason::kOutOfRange, where + ": a robot cannot sight itself"},
                     channels_.sighting());
+    publish_sighting_ack(s, runtime::SightingAck::Status::kRejected);
     return;
   }
-  if (!sightings_seen_.insert({s.utime, s.observer_id, s.observed_id}).second) {
+  const SightingKey key{s.utime, s.observer_id, s.observed_id};
+  if (sightings_answered_.count(key) != 0) {
+    // A resend whose ack was lost, or a replay: answer, never re-apply.
     rejects_.record({runtime::RejectReason::kStaleSequence, where + ": already received"}, channels_.sighting());
+    publish_sighting_ack(s, runtime::SightingAck::Status::kDuplicate);
+    return;
+  }
+  if (sightings_waiting_.count(key) != 0) {
+    ++stats_.resends_while_waiting;  // its ack follows when the worker applied it
     return;
   }
   const auto arrived = Clock::now();
@@ -250,11 +260,12 @@ void ServerNode::on_sighting(const void* data, std::size_t size) {
       lsn = store_->append(channels_.sighting(), data, size, wall_utime());
     } catch (const StateError& e) {
       ++stats_.journal_failures;
-      std::cerr << "lmf-server: " << where << " NOT applied (not journaled): " << e.what() << '\n';
+      std::cerr << "lmf-server: " << where << " NOT taken (the player will resend it): " << e.what() << '\n';
       return;
     }
   }
-  // Unbounded: nobody resends a sighting, and it is tiny (FusionWorker header).
+  sightings_waiting_.insert(key);
+  // Unbounded: a sighting is tiny, and one waiting is not taken twice (FusionWorker header).
   worker_->try_push(
       [this, s, arrived, lsn] {
         sighting_task(s, arrived);
@@ -269,13 +280,20 @@ void ServerNode::on_outcome(Outcome& outcome) {
     case Outcome::Kind::kWrite:
       write_pending_ = false;
       return;
-    case Outcome::Kind::kSighting:
+    case Outcome::Kind::kSighting: {
+      const runtime::Sighting& s = *outcome.sighting;
+      // Answered either way: a repeat gets DUPLICATE (resending a rejected one cannot help).
+      sightings_waiting_.erase({s.utime, s.observer_id, s.observed_id});
+      sightings_answered_.insert({s.utime, s.observer_id, s.observed_id});
       if (outcome.rejection) {
         rejects_.record(*outcome.rejection, channels_.sighting());
+        publish_sighting_ack(s, runtime::SightingAck::Status::kRejected);
       } else {
         ++stats_.sightings_applied;
+        publish_sighting_ack(s, runtime::SightingAck::Status::kApplied);
       }
       break;
+    }
     case Outcome::Kind::kLocalMap: {
       RobotSeqs& seqs = seqs_[outcome.robot_id];
       seqs.waiting.erase(outcome.seq);
@@ -325,6 +343,7 @@ void ServerNode::sighting_task(const runtime::Sighting& sighting, Clock::time_po
   auto outcome = std::make_shared<Outcome>();
   outcome->kind = Outcome::Kind::kSighting;
   outcome->robot_id = sighting.observed_id;
+  outcome->sighting = sighting;
   try {
     const fusion::SightingResult result = map_.add_sighting(to_fusion(sighting));
     record_fusions(result.fused, wait_ms);
@@ -375,7 +394,7 @@ void ServerNode::recover_state() {
     for (const auto& entry : maps) seqs_[robot_id].applied.insert(entry.first);
   }
   for (const SightingRecord& r : sightings_) {
-    sightings_seen_.insert({r.sighting.utime, r.sighting.observer_id, r.sighting.observed_id});
+    sightings_answered_.insert({r.sighting.utime, r.sighting.observer_id, r.sighting.observed_id});
   }
   for (const JournalRecord& r : rec.records) {
     replay(r);
@@ -422,7 +441,7 @@ void ServerNode::replay(const JournalRecord& record) {
       return;
     }
     const runtime::Sighting& s = decoded.value();
-    sightings_seen_.insert({s.utime, s.observer_id, s.observed_id});
+    sightings_waiting_.insert({s.utime, s.observer_id, s.observed_id});  // its outcome (and ack) follows on the loop
     ++recovery_.replayed_sightings;
     sighting_task(s, Clock::now());
   } else {
@@ -583,6 +602,9 @@ bool ServerNode::write_outputs(const LoopSnapshot& loop_side) const {
                           {"acks_fused", s.acks_fused},
                           {"acks_duplicate", s.acks_duplicate},
                           {"acks_queued", s.acks_queued},
+                          {"sighting_acks_applied", s.sighting_acks_applied},
+                          {"sighting_acks_duplicate", s.sighting_acks_duplicate},
+                          {"sighting_acks_rejected", s.sighting_acks_rejected},
                           {"resends_while_waiting", s.resends_while_waiting},
                           {"deferred_queue_full", s.deferred_queue_full},
                           {"discarded_at_stop", s.discarded_at_stop}};
@@ -683,6 +705,20 @@ void ServerNode::publish_ack(int robot_id, std::int64_t seq, runtime::LocalMapAc
     case runtime::LocalMapAck::Status::kQueued: ++stats_.acks_queued; break;
   }
   bus_.publish(channels_.local_map_ack(), runtime::to_message(ack));
+}
+
+void ServerNode::publish_sighting_ack(const runtime::Sighting& s, runtime::SightingAck::Status status) {
+  runtime::SightingAck ack;
+  ack.utime = s.utime;
+  ack.observer_id = s.observer_id;
+  ack.observed_id = s.observed_id;
+  ack.status = status;
+  switch (status) {
+    case runtime::SightingAck::Status::kApplied: ++stats_.sighting_acks_applied; break;
+    case runtime::SightingAck::Status::kDuplicate: ++stats_.sighting_acks_duplicate; break;
+    case runtime::SightingAck::Status::kRejected: ++stats_.sighting_acks_rejected; break;
+  }
+  bus_.publish(channels_.sighting_ack(), runtime::to_message(ack));
 }
 
 void ServerNode::publish_frames() {

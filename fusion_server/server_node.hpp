@@ -13,9 +13,14 @@
 //   QUEUED when the GlobalMap holds it for a robot that has not joined) is sent
 //   on the loop thread once the GlobalMap accepted it. Local maps fused later
 //   (when their robot joins) get a FUSED ack then too.
-// Sightings (LMF_SIGHTING) are validated the same way (unknown robots, a
-// repeated (utime, observer, observed) is stale_sequence) and go through the
-// SAME worker FIFO, so a lockstep replay fuses in lmf-offline's order.
+// Sightings (LMF_SIGHTING), named by (utime, observer, observed), are validated
+// the same way and go through the SAME worker FIFO, so a lockstep replay fuses
+// in lmf-offline's order. Each is answered on LMF_SIGHTING_ACK (the player
+// resends it until then): APPLIED once the worker gave it to the GlobalMap,
+// REJECTED when the GlobalMap or the checks here refused it (robot id >=
+// max_robots, a robot sighting itself), DUPLICATE for a repeat of one already
+// answered (also counted stale_sequence); a repeat still waiting in the worker
+// gets nothing (its ack follows).
 //
 // Ownership across threads: the GlobalMap, the TrajectoryBook and the fusion
 // records belong to the worker thread (and to the caller of shutdown() once the
@@ -107,10 +112,13 @@ struct ServerStats {
   std::int64_t acks_fused = 0;
   std::int64_t acks_duplicate = 0;
   std::int64_t acks_queued = 0;
+  std::int64_t sighting_acks_applied = 0;
+  std::int64_t sighting_acks_duplicate = 0;
+  std::int64_t sighting_acks_rejected = 0;
   std::int64_t local_maps_received = 0;  // every LMF_LOCAL_MAP message, good or bad
   std::int64_t sightings_received = 0;
   std::int64_t sightings_applied = 0;    // handed to the GlobalMap without error
-  std::int64_t resends_while_waiting = 0;
+  std::int64_t resends_while_waiting = 0;  // local maps and sightings repeated before their ack
   std::int64_t deferred_queue_full = 0;  // not acked because the worker queue was full
   std::int64_t discarded_at_stop = 0;    // waiting tasks never started (never acked)
   std::int64_t worker_errors = 0;
@@ -200,6 +208,7 @@ class ServerNode {
   bool write_outputs(const LoopSnapshot& loop_side) const;
 
   void publish_ack(int robot_id, std::int64_t seq, runtime::LocalMapAck::Status status);
+  void publish_sighting_ack(const runtime::Sighting& s, runtime::SightingAck::Status status);
   void publish_frames();
   void publish_global_map();
   void publish_global_map_rate_limited();
@@ -234,7 +243,9 @@ class ServerNode {
     std::set<std::int64_t> waiting;  // in the worker queue
   };
   std::map<int, RobotSeqs> seqs_;
-  std::set<std::tuple<std::int64_t, int, int>> sightings_seen_;  // (utime, observer, observed)
+  using SightingKey = std::tuple<std::int64_t, int, int>;  // (utime, observer, observed)
+  std::set<SightingKey> sightings_answered_;  // acked (or applied before a restart)
+  std::set<SightingKey> sightings_waiting_;   // in the worker queue
   runtime::RejectCounter rejects_;
   ServerStats stats_;
   MapView view_;

@@ -46,9 +46,11 @@ int main(int argc, char** argv) {
       ("rate", po::value(&rate)->default_value(rate), "replay speed: log time / R (R > 0)")
       ("lockstep", "send one scan at a time in time order, each after the previous one was acknowledged")
       ("ack-timeout-ms", po::value(&ack_timeout_ms)->default_value(ack_timeout_ms),
-       "lockstep: resend a scan not acknowledged within this time; rate: how long a sighting waits for acks")
+       "lockstep: resend a scan not acknowledged within this time; rate: how long a sighting waits for acks; "
+       "both: resend a sighting lmf-server has not answered within this time")
       ("max-attempts", po::value(&max_attempts)->default_value(max_attempts),
-       "lockstep: sends of one scan before going on without its ack")
+       "sends of one sighting before giving up on its answer from lmf-server, and (lockstep) of one scan before "
+       "going on without its ack")
       ("seed", po::value(&seed), "seed of the sighting noise (overrides the config's sighting_noise.seed)")
       ("config", po::value(&config_file), "mission JSON config; its sighting_noise section is used")
       ("start-delay-ms", po::value(&start_delay_ms)->default_value(start_delay_ms),

@@ -61,11 +61,16 @@ PlayerNode::PlayerNode(rt::Bus& bus, rt::EventLoop& loop, mission::MissionInputs
   counters_.sightings_total = static_cast<std::int64_t>(inputs_.sightings.size());
   subscriptions_.push_back(bus_.subscribe(
       options_.channels.scan_ack(), [this](const std::string& c, const void* d, std::size_t n) { on_ack(c, d, n); }));
+  subscriptions_.push_back(bus_.subscribe(options_.channels.sighting_ack(),
+                                          [this](const std::string& c, const void* d, std::size_t n) {
+                                            on_sighting_ack(c, d, n);
+                                          }));
 }
 
 PlayerNode::~PlayerNode() {
   if (ack_timer_) loop_.cancel(*ack_timer_);
   if (step_timer_) loop_.cancel(*step_timer_);
+  for (const auto& [key, pending] : pending_sightings_) loop_.cancel(pending.timer);
   for (const int id : timers_) loop_.cancel(id);
   for (const int id : subscriptions_) bus_.unsubscribe(id);
 }
@@ -293,10 +298,73 @@ PlayerNode::SightingOutcome PlayerNode::try_sighting(const mission::SightingInpu
   s.cov_LB = ack_b->covariance;
   auto msg = rt::to_message(s);
   if (!msg) return skip(msg.rejection().describe());
-  bus_.publish(options_.channels.sighting(), msg.value());
+  const SightingKey key{s.utime, s.observer_id, s.observed_id};
+  if (!published_sightings_.insert(key).second) {
+    return skip("robot " + to_string(s.observer_id) + " sighted robot " + to_string(s.observed_id) + " twice at " +
+                to_string(s.utime) + " us");
+  }
+  pending_sightings_[key].message = std::move(msg.value());
+  send_sighting(key);
   ++counters_.sightings_published;
   if (approximate) ++counters_.sightings_approximate;
   return SightingOutcome::kPublished;
+}
+
+void PlayerNode::send_sighting(const SightingKey& key) {
+  PendingSighting& p = pending_sightings_.at(key);
+  if (p.attempts > 0) ++counters_.sighting_resends;
+  ++p.attempts;
+  bus_.publish(options_.channels.sighting(), p.message);
+  p.timer = loop_.after(options_.ack_timeout, [this, key] { sighting_timeout(key); });
+}
+
+void PlayerNode::sighting_timeout(const SightingKey& key) {
+  const auto it = pending_sightings_.find(key);
+  if (it == pending_sightings_.end()) return;
+  if (it->second.attempts < options_.max_attempts) {
+    send_sighting(key);
+    return;
+  }
+  ++counters_.sightings_unanswered;
+  if (counters_.sightings_unanswered <= 10) {
+    std::cerr << "lmf-player: no answer to the sighting of robot " << std::get<2>(key) << " by robot "
+              << std::get<1>(key) << " at " << std::get<0>(key) << " us after " << it->second.attempts
+              << " sends; given up (is lmf-server running?)\n";
+  }
+  pending_sightings_.erase(it);
+  if (ending_ && pending_sightings_.empty()) send_mission_end();
+}
+
+void PlayerNode::on_sighting_ack(const std::string& channel, const void* data, std::size_t size) {
+  auto decoded = rt::decode<rt::SightingAck>(data, size);
+  if (!decoded) {
+    rejects_.record(decoded.rejection(), channel);
+    return;
+  }
+  const rt::SightingAck& a = decoded.value();
+  const SightingKey key{a.utime, a.observer_id, a.observed_id};
+  const auto it = pending_sightings_.find(key);
+  if (it == pending_sightings_.end()) {
+    if (published_sightings_.count(key) != 0) {
+      ++counters_.sighting_acks_duplicate;  // a resend's answer, or one after giving up
+    } else {
+      rejects_.record({rt::RejectReason::kOutOfRange, "ack of the sighting of robot " + to_string(a.observed_id) +
+                                                          " by robot " + to_string(a.observer_id) + " at " +
+                                                          to_string(a.utime) + " us, never sent"},
+                      channel);
+    }
+    return;
+  }
+  if (a.status == rt::SightingAck::Status::kRejected) {
+    ++counters_.sightings_rejected;
+    std::cerr << "lmf-player: the server rejected the sighting of robot " << a.observed_id << " by robot "
+              << a.observer_id << " at " << a.utime << " us (its log says why)\n";
+  } else {
+    ++counters_.sightings_acked;
+  }
+  loop_.cancel(it->second.timer);
+  pending_sightings_.erase(it);
+  if (ending_ && pending_sightings_.empty()) send_mission_end();
 }
 
 // ---- the end ----------------------------------------------------------------------------------------
@@ -305,7 +373,8 @@ void PlayerNode::finish() {
   if (ack_timer_) loop_.cancel(*ack_timer_);
   ack_timer_.reset();
   report_progress(true);
-  send_mission_end();
+  ending_ = true;
+  if (pending_sightings_.empty()) send_mission_end();  // else once the last one is answered or given up
 }
 
 void PlayerNode::send_mission_end() {
@@ -362,7 +431,9 @@ std::string PlayerNode::summary() const {
   out << "scans sent " << c.scans_sent << "/" << c.scans_total << ", acked " << c.scans_acked << ", resends "
       << c.scan_resends << ", given up " << c.scans_given_up << "; sightings published " << c.sightings_published
       << "/" << c.sightings_total << " (approximate " << c.sightings_approximate << ", skipped "
-      << c.sightings_skipped << "); acks rejected " << rejects_.total();
+      << c.sightings_skipped << ", resends " << c.sighting_resends << ", acked " << c.sightings_acked
+      << ", rejected by the server " << c.sightings_rejected << ", unanswered " << c.sightings_unanswered
+      << "); acks rejected " << rejects_.total();
   return out.str();
 }
 

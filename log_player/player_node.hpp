@@ -5,7 +5,10 @@
 //   LMF_SCAN_ACK    in   the agents' acks with their state after each scan
 //   LMF_SIGHTING    out  robot B seen by robot A, with each robot's local map
 //                        seq, x_L? and covariance taken from the ack of its last
-//                        scan at or before the sighting's time
+//                        scan at or before the sighting's time; resent after
+//                        ack_timeout until the server answers, at most
+//                        max_attempts sends
+//   LMF_SIGHTING_ACK in  the server's answer to a sighting: stop resending
 //   LMF_MISSION_END out  at the end, repeated mission_end_repeats times
 //
 // Two pacings:
@@ -19,7 +22,9 @@
 //    their last scan at or before it (after ack_timeout more, the latest ack
 //    before it stands in).
 // A sighting whose robot has not scanned yet (no local frame to relate) is
-// skipped, as lmf-offline does.
+// skipped, as lmf-offline does. The mission end goes out once every published
+// sighting was answered or given up (a server that was down when a sighting
+// went out still gets it: robots join only through sightings).
 //
 // Progress goes to an optional stream: one refreshed line (a terminal) or a
 // line every 10 % (anything else). Threading: everything runs on the loop's thread.
@@ -31,10 +36,13 @@
 #include <map>
 #include <optional>
 #include <ostream>
+#include <set>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "lmf/mission/mission_inputs.hpp"
+#include "lmf/sighting_t.hpp"
 #include "runtime/bus.hpp"
 #include "runtime/channels.hpp"
 #include "runtime/event_loop.hpp"
@@ -48,7 +56,7 @@ struct PlayerOptions {
   bool lockstep = false;
   double rate = 1.0;                                // --rate pacing: log time / rate (> 0)
   std::chrono::milliseconds ack_timeout{2000};      // > 0
-  int max_attempts = 10;                            // lockstep sends of one scan before giving up (>= 1)
+  int max_attempts = 10;  // sends of one sighting, or (lockstep) of one scan, before giving up (>= 1)
   std::chrono::milliseconds start_delay{0};         // before the first scan (subscribers starting)
   std::chrono::milliseconds mission_end_interval{200};
   int mission_end_repeats = 5;                      // >= 1
@@ -70,6 +78,11 @@ struct PlayerCounters {
   std::int64_t sightings_published = 0;
   std::int64_t sightings_approximate = 0;  // published with an earlier ack standing in
   std::int64_t sightings_skipped = 0;      // a robot had not scanned yet (or unknown / bad values)
+  std::int64_t sighting_resends = 0;       // sends after an ack_timeout without answer
+  std::int64_t sightings_acked = 0;        // answered APPLIED or DUPLICATE
+  std::int64_t sightings_rejected = 0;     // answered REJECTED (the server refused it)
+  std::int64_t sightings_unanswered = 0;   // no answer after max_attempts sends
+  std::int64_t sighting_acks_duplicate = 0;  // answers to a sighting already answered
   std::int64_t mission_end_sent = 0;
 };
 
@@ -105,6 +118,7 @@ class PlayerNode {
   void begin();
   void send_scan(const ScanEvent& event);
   void on_ack(const std::string& channel, const void* data, std::size_t size);
+  void on_sighting_ack(const std::string& channel, const void* data, std::size_t size);
   // Lockstep.
   void lockstep_step();
   void lockstep_timeout(std::size_t event_index);
@@ -114,6 +128,9 @@ class PlayerNode {
   // due by wall time in rate mode); stops at the first that must wait.
   void publish_sightings(std::int64_t before_utime, bool allow_fallback);
   SightingOutcome try_sighting(const mission::SightingInput& sighting, bool allow_fallback);
+  using SightingKey = std::tuple<std::int64_t, int, int>;  // (utime, observer, observed)
+  void send_sighting(const SightingKey& key);
+  void sighting_timeout(const SightingKey& key);
   std::optional<runtime::ScanAck> ack_at_or_before(std::size_t robot, std::int64_t utime, bool allow_fallback,
                                                    bool* approximate) const;
   void finish();
@@ -136,6 +153,16 @@ class PlayerNode {
   int attempts_ = 0;                                  // lockstep: sends of events_[next_event_]
   std::optional<int> ack_timer_;
   std::optional<int> step_timer_;                     // the next lockstep step or mission_end_t repeat
+
+  // Published sightings not answered yet, and every one published.
+  struct PendingSighting {
+    lmf::sighting_t message;
+    int attempts = 0;
+    int timer = 0;
+  };
+  std::map<SightingKey, PendingSighting> pending_sightings_;
+  std::set<SightingKey> published_sightings_;
+  bool ending_ = false;  // the replay is over; mission_end_t once no sighting is pending
 
   bool started_ = false;
   bool replay_done_ = false;  // every scan sent (and, lockstep, acked or given up)

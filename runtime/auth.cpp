@@ -27,6 +27,7 @@
 #include "lmf/global_map_t.hpp"
 #include "lmf/laser_scan_t.hpp"
 #include "lmf/local_map_ack_t.hpp"
+#include "lmf/sighting_ack_t.hpp"
 #include "lmf/local_map_t.hpp"
 #include "lmf/mission_end_t.hpp"
 #include "lmf/scan_ack_t.hpp"
@@ -251,7 +252,9 @@ std::map<std::string, KeyRing> make_system_keys(const std::vector<int>& robot_id
   std::vector<std::string> player_and_robots = robots;
   player_and_robots.insert(player_and_robots.begin(), "player");
   file("server", player_and_robots);
-  file("player", robots);
+  std::vector<std::string> server_and_robots = robots;
+  server_and_robots.insert(server_and_robots.begin(), "server");
+  file("player", server_and_robots);  // scan acks, sighting acks
   std::vector<std::string> everyone = player_and_robots;
   everyone.insert(everyone.begin(), "server");
   file("monitor", everyone);
@@ -431,6 +434,7 @@ const std::vector<Rule>& rules() {
       rule<lmf::scan_ack_t>("scan_ack_t", Speaker::kRobotInMessage),
       rule<lmf::agent_status_t>("agent_status_t", Speaker::kRobotInMessage),
       rule<lmf::local_map_ack_t>("local_map_ack_t", Speaker::kServer),
+      rule<lmf::sighting_ack_t>("sighting_ack_t", Speaker::kServer),
       rule<lmf::corrected_frames_t>("corrected_frames_t", Speaker::kServer),
       rule<lmf::global_map_t>("global_map_t", Speaker::kServer),
       rule<lmf::server_status_t>("server_status_t", Speaker::kServer),

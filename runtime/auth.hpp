@@ -26,8 +26,8 @@
 // Authorization: the verified sender must be allowed to say what the message
 // says, decided from the LCM type fingerprint at the start of the payload:
 //   local_map_t, scan_ack_t, agent_status_t          only robot<N> with robot_id == N
-//   local_map_ack_t, corrected_frames_t,
-//   global_map_t, server_status_t                    only server
+//   local_map_ack_t, sighting_ack_t,
+//   corrected_frames_t, global_map_t, server_status_t only server
 //   laser_scan_t, sighting_t, mission_end_t          only player
 //   anything else                                    nobody
 //
@@ -134,7 +134,7 @@ Key random_key();
 // process's principal: a fresh random key per principal, and in each file only
 // the keys that process needs, its own and those of the senders it reads:
 //   server     server, player, every robot            (local maps, sightings)
-//   player     player, every robot                    (scan acks)
+//   player     player, server, every robot            (scan acks, sighting acks)
 //   monitor    monitor, server, player, every robot   (it reads every channel)
 //   robot<N>   robot<N>, server, player               (acks, frames, scans, mission end)
 // so no robot holds another robot's key. Throws std::invalid_argument for a

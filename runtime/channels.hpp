@@ -7,7 +7,8 @@
 //   <P>LOCAL_MAP          local_map_t         agent -> server, resent until acked
 //   <P>LOCAL_MAP_ACK      local_map_ack_t     server -> agent
 //   <P>CORRECTED_FRAMES   corrected_frames_t  server -> agents, after each fusion and periodically
-//   <P>SIGHTING           sighting_t          player -> server (a robot sees another)
+//   <P>SIGHTING           sighting_t          player -> server (a robot sees another), resent until acked
+//   <P>SIGHTING_ACK       sighting_ack_t      server -> player
 //   <P>GLOBAL_MAP         global_map_t        server -> monitors
 //   <P>AGENT_STATUS       agent_status_t      agents -> monitors
 //   <P>SERVER_STATUS      server_status_t     server -> monitors
@@ -30,6 +31,7 @@ inline constexpr std::string_view kLocalMap = "LOCAL_MAP";
 inline constexpr std::string_view kLocalMapAck = "LOCAL_MAP_ACK";
 inline constexpr std::string_view kCorrectedFrames = "CORRECTED_FRAMES";
 inline constexpr std::string_view kSighting = "SIGHTING";
+inline constexpr std::string_view kSightingAck = "SIGHTING_ACK";
 inline constexpr std::string_view kGlobalMap = "GLOBAL_MAP";
 inline constexpr std::string_view kAgentStatus = "AGENT_STATUS";
 inline constexpr std::string_view kServerStatus = "SERVER_STATUS";
@@ -57,6 +59,7 @@ class Channels {
   std::string local_map_ack() const { return with_prefix(channel_suffix::kLocalMapAck); }
   std::string corrected_frames() const { return with_prefix(channel_suffix::kCorrectedFrames); }
   std::string sighting() const { return with_prefix(channel_suffix::kSighting); }
+  std::string sighting_ack() const { return with_prefix(channel_suffix::kSightingAck); }
   std::string global_map() const { return with_prefix(channel_suffix::kGlobalMap); }
   std::string agent_status() const { return with_prefix(channel_suffix::kAgentStatus); }
   std::string server_status() const { return with_prefix(channel_suffix::kServerStatus); }

@@ -73,6 +73,8 @@ std::optional<Rejection> precheck(std::type_identity<lmf::scan_ack_t>, const std
                                   const DecodeLimits&) { return std::nullopt; }
 std::optional<Rejection> precheck(std::type_identity<lmf::local_map_ack_t>, const std::uint8_t*, std::size_t,
                                   const DecodeLimits&) { return std::nullopt; }
+std::optional<Rejection> precheck(std::type_identity<lmf::sighting_ack_t>, const std::uint8_t*, std::size_t,
+                                  const DecodeLimits&) { return std::nullopt; }
 
 std::optional<Rejection> precheck(std::type_identity<lmf::mission_end_t>, const std::uint8_t* bytes, std::size_t size,
                                   const DecodeLimits& limits) {
@@ -262,6 +264,7 @@ Checked<Msg> decode_message(const void* data, std::size_t size, const DecodeLimi
 template Checked<lmf::laser_scan_t> decode_message(const void*, std::size_t, const DecodeLimits&);
 template Checked<lmf::local_map_t> decode_message(const void*, std::size_t, const DecodeLimits&);
 template Checked<lmf::local_map_ack_t> decode_message(const void*, std::size_t, const DecodeLimits&);
+template Checked<lmf::sighting_ack_t> decode_message(const void*, std::size_t, const DecodeLimits&);
 template Checked<lmf::corrected_frames_t> decode_message(const void*, std::size_t, const DecodeLimits&);
 template Checked<lmf::sighting_t> decode_message(const void*, std::size_t, const DecodeLimits&);
 template Checked<lmf::scan_ack_t> decode_message(const void*, std::size_t, const DecodeLimits&);
@@ -744,6 +747,26 @@ lmf::local_map_ack_t to_message(const LocalMapAck& ack) {
   return msg;
 }
 
+Checked<SightingAck> from_message(const lmf::sighting_ack_t& msg, const DecodeLimits&) {
+  if (auto r = check_nonnegative(msg.utime, "sighting_ack_t.utime")) return *r;
+  if (auto r = check_nonnegative(msg.observer_id, "sighting_ack_t.observer_id")) return *r;
+  if (auto r = check_nonnegative(msg.observed_id, "sighting_ack_t.observed_id")) return *r;
+  if (msg.status != lmf::sighting_ack_t::APPLIED && msg.status != lmf::sighting_ack_t::DUPLICATE &&
+      msg.status != lmf::sighting_ack_t::REJECTED) {
+    return reject(RejectReason::kOutOfRange, "sighting_ack_t.status = " + to_string(msg.status));
+  }
+  return SightingAck{msg.utime, msg.observer_id, msg.observed_id, static_cast<SightingAck::Status>(msg.status)};
+}
+
+lmf::sighting_ack_t to_message(const SightingAck& ack) {
+  lmf::sighting_ack_t msg;
+  msg.utime = ack.utime;
+  msg.observer_id = ack.observer_id;
+  msg.observed_id = ack.observed_id;
+  msg.status = static_cast<std::int8_t>(ack.status);
+  return msg;
+}
+
 }  // namespace lmf::runtime
 
 // lcm-gen declares message constants as `static const` members with an
@@ -755,4 +778,7 @@ namespace lmf {
 const std::int8_t local_map_ack_t::FUSED;
 const std::int8_t local_map_ack_t::DUPLICATE;
 const std::int8_t local_map_ack_t::QUEUED;
+const std::int8_t sighting_ack_t::APPLIED;
+const std::int8_t sighting_ack_t::DUPLICATE;
+const std::int8_t sighting_ack_t::REJECTED;
 }  // namespace lmf

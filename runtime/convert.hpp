@@ -36,6 +36,7 @@
 #include "lmf/laser_scan_t.hpp"
 #include "lmf/local_map/local_map_snapshot.hpp"
 #include "lmf/local_map_ack_t.hpp"
+#include "lmf/sighting_ack_t.hpp"
 #include "lmf/local_map_t.hpp"
 #include "lmf/mission_end_t.hpp"
 #include "lmf/pose2_t.hpp"
@@ -126,6 +127,9 @@ Checked<lmf::mission_end_t> to_message(const MissionEnd& end);
 Checked<LocalMapAck> from_message(const lmf::local_map_ack_t& msg, const DecodeLimits& limits = {});
 lmf::local_map_ack_t to_message(const LocalMapAck& ack);
 
+Checked<SightingAck> from_message(const lmf::sighting_ack_t& msg, const DecodeLimits& limits = {});
+lmf::sighting_ack_t to_message(const SightingAck& ack);
+
 // ---- 3. bytes -> core values -------------------------------------------------
 template <class Core>
 struct MessageOf;  // the LCM type that carries Core
@@ -135,6 +139,7 @@ template <> struct MessageOf<CorrectedFrames> { using type = lmf::corrected_fram
 template <> struct MessageOf<Sighting> { using type = lmf::sighting_t; };
 template <> struct MessageOf<ScanAck> { using type = lmf::scan_ack_t; };
 template <> struct MessageOf<LocalMapAck> { using type = lmf::local_map_ack_t; };
+template <> struct MessageOf<SightingAck> { using type = lmf::sighting_ack_t; };
 template <> struct MessageOf<MissionEnd> { using type = lmf::mission_end_t; };
 
 template <class Core>

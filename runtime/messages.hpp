@@ -47,6 +47,15 @@ struct LocalMapAck {
   Status status = Status::kFused;
 };
 
+// The server's answer to the sighting (utime, observer_id, observed_id).
+struct SightingAck {
+  enum class Status : std::int8_t { kApplied = 0, kDuplicate = 1, kRejected = 2 };  // = sighting_ack_t constants
+  std::int64_t utime = 0;
+  int observer_id = 0;
+  int observed_id = 0;
+  Status status = Status::kApplied;
+};
+
 // The corrected local-map frame L_r of one joined robot (DESIGN §5 step 6).
 struct CorrectedFrame {
   int robot_id = 0;

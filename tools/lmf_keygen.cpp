@@ -29,7 +29,7 @@ int main(int argc, char** argv) {
       "Usage: lmf-keygen --robots N --out DIR [--force]\n"
       "Writes DIR/server.keys, DIR/player.keys, DIR/monitor.keys and DIR/robot<N>.keys (mode 600). Each holds\n"
       "the process's own key and those of the principals whose messages it reads:\n"
-      "  server: player and every robot; player: every robot; monitor: everyone; robot<N>: server and player.\n"
+      "  server: player and every robot; player: server and every robot; monitor: everyone; robot<N>: server and player.\n"
       "Copy each file to its machine only; run a process with --keys DIR/<its principal>.keys.\n\nOptions");
   options.add_options()
       ("help,h", "print this help and exit")

@@ -268,6 +268,9 @@ Corpus make_corpus() {
   c.local_map_acks = {{1'700'000'000'000'000, 0, 3, runtime::LocalMapAck::Status::kFused},
                       {1'700'000'000'000'001, 1, 0, runtime::LocalMapAck::Status::kDuplicate},
                       {1'700'000'000'000'002, 2, 7, runtime::LocalMapAck::Status::kQueued}};
+  c.sighting_acks = {{24'000'000, 0, 1, runtime::SightingAck::Status::kApplied},
+                     {0, 1, 0, runtime::SightingAck::Status::kDuplicate},
+                     {1'700'000'000'000'000, 2, 3, runtime::SightingAck::Status::kRejected}};
   c.mission_ends = {{24'000'000, {0, 1}}, {1, {0, 1, 2, 3, 4, 5, 6, 7}}, {0, {}}};
   c.agent_statuses = {agent_status(0, true), agent_status(1, false)};
   c.server_statuses = {server_status(true), server_status(false)};
@@ -522,6 +525,15 @@ std::string difference(const runtime::LocalMapAck& a, const runtime::LocalMapAck
   d.integer(a.utime, b.utime, "utime");
   d.integer(a.robot_id, b.robot_id, "robot_id");
   d.integer(a.seq, b.seq, "seq");
+  d.integer(static_cast<std::int64_t>(a.status), static_cast<std::int64_t>(b.status), "status");
+  return d.result();
+}
+
+std::string difference(const runtime::SightingAck& a, const runtime::SightingAck& b) {
+  Differ d;
+  d.integer(a.utime, b.utime, "utime");
+  d.integer(a.observer_id, b.observer_id, "observer_id");
+  d.integer(a.observed_id, b.observed_id, "observed_id");
   d.integer(static_cast<std::int64_t>(a.status), static_cast<std::int64_t>(b.status), "status");
   return d.result();
 }

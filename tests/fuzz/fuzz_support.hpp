@@ -61,6 +61,7 @@ struct Corpus {
   std::vector<runtime::Sighting> sightings;     // the simulator's, with the agents' state then
   std::vector<runtime::CorrectedFrames> corrected_frames;
   std::vector<runtime::LocalMapAck> local_map_acks;
+  std::vector<runtime::SightingAck> sighting_acks;
   std::vector<runtime::MissionEnd> mission_ends;
   std::vector<lmf::agent_status_t> agent_statuses;
   std::vector<lmf::server_status_t> server_statuses;
@@ -111,6 +112,7 @@ std::string difference(const runtime::CorrectedFrames& a, const runtime::Correct
 std::string difference(const runtime::Sighting& a, const runtime::Sighting& b);
 std::string difference(const runtime::ScanAck& a, const runtime::ScanAck& b);
 std::string difference(const runtime::LocalMapAck& a, const runtime::LocalMapAck& b);
+std::string difference(const runtime::SightingAck& a, const runtime::SightingAck& b);
 std::string difference(const runtime::MissionEnd& a, const runtime::MissionEnd& b);
 
 // Encodes with lcm-gen's encoder (runtime::encode_message), for seeds.

@@ -144,6 +144,9 @@ TEST_F(PlayerMission, LockstepAcksEverythingAndEqualsOffline) {
   EXPECT_EQ(pc.sightings_published + pc.sightings_skipped, pc.sightings_total);
   EXPECT_GT(pc.sightings_published, 0);
   EXPECT_EQ(pc.sightings_approximate, 0);
+  EXPECT_EQ(pc.sightings_acked, pc.sightings_published);
+  EXPECT_EQ(pc.sighting_resends, 0);
+  EXPECT_EQ(s->server->sightings(), pc.sightings_published);
   EXPECT_EQ(s->player->rejects().total(), 0);
   for (const auto& agent : s->agents) {
     const auto& robot = inputs_->robots[static_cast<std::size_t>(agent->robot_id())];
@@ -202,6 +205,46 @@ TEST_F(PlayerMission, ResendsWhenTheServerIgnoresTheFirstTransmission) {
     EXPECT_GE(agent->counters().map_resends, agent->counters().maps_shipped) << "robot " << agent->robot_id();
   }
   for (const auto& [key, n] : s->server->received()) EXPECT_GE(n, 2) << "map " << key.second;
+}
+
+// A sighting sent while the server could not take it (down, restarting) is
+// resent until answered: robot 1 joins only through it.
+TEST_F(PlayerMission, ResendsASightingUntilTheServerAnswers) {
+  PlayerOptions options = lockstep_options();
+  options.ack_timeout = 100ms;
+  auto s = make_system(options);
+  s->server->ignore_first_sighting_transmissions(2);
+  s->player->start();
+  ASSERT_TRUE(run_until(s->loop, [&] { return s->all_done(); }, 60s)) << s->player->summary();
+  const auto& pc = s->player->counters();
+  ASSERT_GT(pc.sightings_published, 0);
+  EXPECT_EQ(pc.sightings_acked, pc.sightings_published);
+  EXPECT_EQ(pc.sighting_resends, 2 * pc.sightings_published);
+  EXPECT_EQ(pc.sightings_unanswered, 0);
+  EXPECT_EQ(s->player->rejects().total(), 0);
+  EXPECT_EQ(s->server->sightings(), pc.sightings_published) << "each applied once";
+  for (const auto& [key, n] : s->server->sightings_received()) EXPECT_EQ(n, 3) << "sighting at " << std::get<0>(key);
+  EXPECT_TRUE(s->server->map().is_joined(1));
+  expect_every_map_fused_once(*s);
+}
+
+// Without an answer the player gives up after max_attempts sends and still ends the mission.
+TEST_F(PlayerMission, GivesUpOnAnUnansweredSightingAndStillEnds) {
+  PlayerOptions options = lockstep_options();
+  options.ack_timeout = 30ms;
+  options.max_attempts = 3;
+  auto s = make_system(options);
+  s->server->ignore_first_sighting_transmissions(1000);
+  s->player->start();
+  ASSERT_TRUE(run_until(s->loop, [&] { return s->player->finished(); }, 60s)) << s->player->summary();
+  const auto& pc = s->player->counters();
+  ASSERT_GT(pc.sightings_published, 0);
+  EXPECT_EQ(pc.sightings_unanswered, pc.sightings_published);
+  EXPECT_EQ(pc.sighting_resends, 2 * pc.sightings_published);
+  EXPECT_EQ(pc.sightings_acked, 0);
+  EXPECT_EQ(pc.mission_end_sent, options.mission_end_repeats);
+  EXPECT_EQ(s->server->sightings(), 0);
+  EXPECT_FALSE(s->server->map().is_joined(1));
 }
 
 TEST_F(PlayerMission, DroppedLocalMapTransmissionsAreStillFusedExactlyOnce) {

@@ -104,13 +104,17 @@ class FakeServer {
 
   // Ignore the first `n` transmissions of every local map (to exercise resends).
   void ignore_first_transmissions(int n) { ignore_first_ = n; }
+  // The same for every sighting.
+  void ignore_first_sighting_transmissions(int n) { ignore_first_sightings_ = n; }
 
   const fusion::GlobalMap& map() const { return map_; }
   // How often each (robot, seq) was fused (must be once) and received.
   const std::map<std::pair<int, std::int64_t>, int>& fused() const { return fused_; }
   const std::map<std::pair<int, std::int64_t>, int>& received() const { return received_; }
   std::int64_t fusions() const { return fusions_; }
-  std::int64_t sightings() const { return sightings_; }
+  std::int64_t sightings() const { return sightings_; }  // given to the map (each at most once)
+  // How often each sighting (utime, observer, observed) was received.
+  const std::map<std::tuple<std::int64_t, int, int>, int>& sightings_received() const { return sightings_received_; }
   std::int64_t rejected() const { return rejected_; }
   std::int64_t duplicates() const { return duplicates_; }
   // Scan poses of every fused local map, by (robot, seq).
@@ -145,6 +149,14 @@ class FakeServer {
       return;
     }
     const runtime::Sighting& s = sighting.value();
+    const int received = ++sightings_received_[{s.utime, s.observer_id, s.observed_id}];
+    if (received <= ignore_first_sightings_) return;
+    runtime::SightingAck ack{s.utime, s.observer_id, s.observed_id, runtime::SightingAck::Status::kApplied};
+    if (received > ignore_first_sightings_ + 1) {
+      ack.status = runtime::SightingAck::Status::kDuplicate;
+      bus_.publish(channels_.sighting_ack(), runtime::to_message(ack));
+      return;
+    }
     fusion::RobotSighting r;
     r.utime = s.utime;
     r.observer_id = s.observer_id;
@@ -159,6 +171,7 @@ class FakeServer {
     r.cov_LB = s.cov_LB;
     ++sightings_;
     record(map_.add_sighting(r).fused);
+    bus_.publish(channels_.sighting_ack(), runtime::to_message(ack));
   }
 
   void record(const std::vector<fusion::FusionReport>& reports) {
@@ -177,6 +190,8 @@ class FakeServer {
   runtime::Channels channels_;
   fusion::GlobalMap map_;
   int ignore_first_ = 0;
+  int ignore_first_sightings_ = 0;
+  std::map<std::tuple<std::int64_t, int, int>, int> sightings_received_;
   std::map<std::pair<int, std::int64_t>, int> fused_;
   std::map<std::pair<int, std::int64_t>, int> received_;
   std::map<std::pair<int, std::int64_t>, std::vector<ScanPose>> scan_poses_;

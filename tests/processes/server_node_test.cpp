@@ -108,6 +108,10 @@ class ServerNodeTest : public ::testing::Test {
         channels_.local_map_ack(), [this](const std::string&, const lmf::local_map_ack_t& ack) {
           acks_.emplace_back(ack.robot_id, ack.seq, static_cast<Status>(ack.status));
         });
+    bus_.subscribe_message<lmf::sighting_ack_t>(
+        channels_.sighting_ack(), [this](const std::string&, const lmf::sighting_ack_t& ack) {
+          sighting_acks_.emplace_back(ack.utime, ack.observer_id, ack.observed_id, ack.status);
+        });
     bus_.subscribe_message<lmf::server_status_t>(
         channels_.server_status(), [this](const std::string&, const lmf::server_status_t& s) { statuses_.push_back(s); });
     bus_.subscribe_message<lmf::corrected_frames_t>(
@@ -156,6 +160,12 @@ class ServerNodeTest : public ::testing::Test {
     return n;
   }
 
+  int count_sighting_acks(std::int64_t utime, int observer, int observed, std::int8_t status) const {
+    int n = 0;
+    for (const auto& [t, a, b, st] : sighting_acks_) n += (t == utime && a == observer && b == observed && st == status);
+    return n;
+  }
+
   static std::int64_t reject_count(const lmf::server::ServerNode& node, const std::string& reason) {
     for (const auto& [name, count] : node.reject_counts()) {
       if (name == reason) return count;
@@ -173,6 +183,7 @@ class ServerNodeTest : public ::testing::Test {
   rt::EventLoop loop_;
   std::filesystem::path out_;
   std::vector<std::tuple<int, std::int64_t, Status>> acks_;
+  std::vector<std::tuple<std::int64_t, int, int, std::int8_t>> sighting_acks_;  // (utime, observer, observed, status)
   std::vector<lmf::server_status_t> statuses_;
   std::vector<lmf::corrected_frames_t> frames_;
   std::vector<lmf::global_map_t> maps_;
@@ -283,6 +294,13 @@ TEST_F(ServerNodeTest, BadMessagesAreRejectedByReasonAndLeaveTheMapUnchanged) {
   EXPECT_EQ(reject_count(node, "stale_sequence"), 2);
   EXPECT_EQ(reject_count(node, "out_of_range") + reject_count(node, "wrong_size"), 2) << "the self-sighting";
   EXPECT_EQ(count_acks(0, 0, Status::kDuplicate), 1);
+  // Sightings: the applied one was answered APPLIED, its replay DUPLICATE, the
+  // unknown robot REJECTED (the player stops resending); what did not decode
+  // (garbage, NaN, indefinite, the self-sighting) cannot be answered.
+  EXPECT_EQ(count_sighting_acks(500'000, 0, 2, lmf::sighting_ack_t::APPLIED), 1);
+  EXPECT_EQ(count_sighting_acks(500'000, 0, 2, lmf::sighting_ack_t::DUPLICATE), 1);
+  EXPECT_EQ(count_sighting_acks(600'000, 0, 9, lmf::sighting_ack_t::REJECTED), 1);
+  EXPECT_EQ(sighting_acks_.size(), 3u);
 
   // Only the valid queued map of robot 3 reached the GlobalMap, which did not fuse it.
   const lmf::server::MapView& after = node.view();

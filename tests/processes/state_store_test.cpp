@@ -346,6 +346,9 @@ class ServerStateTest : public ::testing::Test {
         channels_.local_map_ack(), [this](const std::string&, const lmf::local_map_ack_t& ack) {
           acks_.emplace_back(ack.robot_id, ack.seq, static_cast<Status>(ack.status));
         });
+    bus_.subscribe_message<lmf::sighting_ack_t>(
+        channels_.sighting_ack(),
+        [this](const std::string&, const lmf::sighting_ack_t& ack) { sighting_acks_.push_back(ack.status); });
   }
   static rt::EventLoopOptions no_signals() {
     rt::EventLoopOptions o;
@@ -393,6 +396,7 @@ class ServerStateTest : public ::testing::Test {
   rt::Bus bus_;
   rt::EventLoop loop_;
   std::vector<std::tuple<int, std::int64_t, Status>> acks_;
+  std::vector<std::int8_t> sighting_acks_;  // statuses, in arrival order
 };
 
 TEST_F(ServerStateTest, ARestartedServerContinuesBitIdentically) {
@@ -433,9 +437,26 @@ TEST_F(ServerStateTest, ARestartedServerContinuesBitIdentically) {
   publish_map(1, 1, x_WL1);
   ASSERT_TRUE(run_until([&] { return count_acks(0, 4, Status::kFused) == 1 && count_acks(1, 1, Status::kFused) == 1; }));
   settle(restarted);
+  EXPECT_EQ(sighting_acks_, (std::vector<std::int8_t>{lmf::sighting_ack_t::APPLIED, lmf::sighting_ack_t::APPLIED}))
+      << "the live server's answer, then the restarted one's (the sighting came after the crash copy)";
   restarted.shutdown(false);
   EXPECT_EQ(restarted.map_after_shutdown()->counts().robots_joined, 2);
   EXPECT_EQ(archive(*restarted.map_after_shutdown()), final_live);
+
+  // A third life on the same state: the sighting's resend (its ack lost) is
+  // answered DUPLICATE from the recovered records, never applied twice.
+  sighting_acks_.clear();
+  const fs::path copy = fresh_dir("server_third");  // `restarted` still holds the lock of `crashed`
+  fs::copy(crashed, copy, fs::copy_options::recursive);
+  fs::remove(copy / "lock");
+  lmf::server::ServerNode third(bus_, loop_, channels_, options(copy, "third"));
+  publish_sighting(make_sighting(0, 1, 2'500'000));
+  ASSERT_TRUE(run_until([&] { return !sighting_acks_.empty(); }));
+  settle(third);
+  EXPECT_EQ(sighting_acks_, std::vector<std::int8_t>{lmf::sighting_ack_t::DUPLICATE});
+  EXPECT_EQ(third.stats().sightings_applied, 0);
+  third.shutdown(false);
+  EXPECT_EQ(archive(*third.map_after_shutdown()), final_live);
 }
 
 TEST_F(ServerStateTest, AStateMadeWithAnotherConfigIsRefused) {

@@ -441,8 +441,9 @@ TEST(AuthAuthorize, ServerAndPlayerMessages) {
   lmf::corrected_frames_t frames{};
   lmf::global_map_t map{};
   lmf::server_status_t server_status{};
+  lmf::sighting_ack_t sighting_ack{};
   for (const Bytes& bytes : {rt::encode_message(an_ack(0, 0)), rt::encode_message(frames), rt::encode_message(map),
-                             rt::encode_message(server_status)}) {
+                             rt::encode_message(server_status), rt::encode_message(sighting_ack)}) {
     EXPECT_FALSE(auth::authorize("server", bytes).has_value());
     for (const char* other : {"robot0", "player", "monitor"}) EXPECT_TRUE(auth::authorize(other, bytes).has_value());
   }

@@ -20,6 +20,7 @@ using lmf::runtime::CorrectedFrame;
 using lmf::runtime::CorrectedFrames;
 using lmf::runtime::DecodeLimits;
 using lmf::runtime::LocalMapAck;
+using lmf::runtime::SightingAck;
 using lmf::runtime::MissionEnd;
 using lmf::runtime::RejectReason;
 using lmf::runtime::RobotScan;
@@ -280,6 +281,13 @@ TEST(Convert, AcksRoundTrip) {
   ASSERT_TRUE(map_ack.ok());
   EXPECT_EQ(map_ack.value().seq, 5);
   EXPECT_EQ(map_ack.value().status, LocalMapAck::Status::kQueued);
+  const auto sighting_ack =
+      through_bytes<SightingAck>(rt::to_message(SightingAck{600'000, 1, 2, SightingAck::Status::kRejected}));
+  ASSERT_TRUE(sighting_ack.ok());
+  EXPECT_EQ(sighting_ack.value().utime, 600'000);
+  EXPECT_EQ(sighting_ack.value().observer_id, 1);
+  EXPECT_EQ(sighting_ack.value().observed_id, 2);
+  EXPECT_EQ(sighting_ack.value().status, SightingAck::Status::kRejected);
 }
 
 TEST(Convert, MissionEndRoundTrips) {
@@ -556,6 +564,12 @@ TEST(ConvertRejects, OutOfRange) {
   auto ack = rt::to_message(LocalMapAck{1, 1, 1, LocalMapAck::Status::kFused});
   ack.status = 9;
   EXPECT_EQ(reason_of(through_bytes<LocalMapAck>(ack)), RejectReason::kOutOfRange);
+  auto bad_sighting_ack = rt::to_message(SightingAck{1, 0, 1, SightingAck::Status::kApplied});
+  bad_sighting_ack.status = 3;
+  EXPECT_EQ(reason_of(through_bytes<SightingAck>(bad_sighting_ack)), RejectReason::kOutOfRange);
+  bad_sighting_ack.status = lmf::sighting_ack_t::APPLIED;
+  bad_sighting_ack.observer_id = -1;
+  EXPECT_EQ(reason_of(through_bytes<SightingAck>(bad_sighting_ack)), RejectReason::kOutOfRange);
   auto scan_ack = rt::to_message(ScanAck{}).value();
   scan_ack.local_map_seq = -2;
   EXPECT_EQ(reason_of(through_bytes<ScanAck>(scan_ack)), RejectReason::kOutOfRange);
