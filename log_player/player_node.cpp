@@ -70,7 +70,7 @@ PlayerNode::PlayerNode(rt::Bus& bus, rt::EventLoop& loop, mission::MissionInputs
 PlayerNode::~PlayerNode() {
   if (ack_timer_) loop_.cancel(*ack_timer_);
   if (step_timer_) loop_.cancel(*step_timer_);
-  for (const auto& [key, pending] : pending_sightings_) loop_.cancel(pending.timer);
+  if (sighting_timer_) loop_.cancel(*sighting_timer_);
   for (const int id : timers_) loop_.cancel(id);
   for (const int id : subscriptions_) bus_.unsubscribe(id);
 }
@@ -303,36 +303,40 @@ PlayerNode::SightingOutcome PlayerNode::try_sighting(const mission::SightingInpu
     return skip("robot " + to_string(s.observer_id) + " sighted robot " + to_string(s.observed_id) + " twice at " +
                 to_string(s.utime) + " us");
   }
-  pending_sightings_[key].message = std::move(msg.value());
-  send_sighting(key);
+  PendingSighting& pending = pending_sightings_[key];
+  pending.message = std::move(msg.value());
+  pending.attempts = 1;
+  bus_.publish(options_.channels.sighting(), pending.message);
+  if (!sighting_timer_) sighting_timer_ = loop_.after(options_.ack_timeout, [this] { resend_sightings(); });
   ++counters_.sightings_published;
   if (approximate) ++counters_.sightings_approximate;
   return SightingOutcome::kPublished;
 }
 
-void PlayerNode::send_sighting(const SightingKey& key) {
-  PendingSighting& p = pending_sightings_.at(key);
-  if (p.attempts > 0) ++counters_.sighting_resends;
-  ++p.attempts;
-  bus_.publish(options_.channels.sighting(), p.message);
-  p.timer = loop_.after(options_.ack_timeout, [this, key] { sighting_timeout(key); });
-}
-
-void PlayerNode::sighting_timeout(const SightingKey& key) {
-  const auto it = pending_sightings_.find(key);
-  if (it == pending_sightings_.end()) return;
-  if (it->second.attempts < options_.max_attempts) {
-    send_sighting(key);
-    return;
+void PlayerNode::resend_sightings() {
+  sighting_timer_.reset();
+  for (auto it = pending_sightings_.begin(); it != pending_sightings_.end();) {
+    PendingSighting& p = it->second;
+    if (p.attempts < options_.max_attempts) {
+      ++p.attempts;
+      ++counters_.sighting_resends;
+      bus_.publish(options_.channels.sighting(), p.message);
+      ++it;
+      continue;
+    }
+    ++counters_.sightings_unanswered;
+    if (counters_.sightings_unanswered <= 10) {
+      const auto& [utime, observer, observed] = it->first;
+      std::cerr << "lmf-player: no answer to the sighting of robot " << observed << " by robot " << observer
+                << " at " << utime << " us after " << p.attempts << " sends; given up (is lmf-server running?)\n";
+    }
+    it = pending_sightings_.erase(it);
   }
-  ++counters_.sightings_unanswered;
-  if (counters_.sightings_unanswered <= 10) {
-    std::cerr << "lmf-player: no answer to the sighting of robot " << std::get<2>(key) << " by robot "
-              << std::get<1>(key) << " at " << std::get<0>(key) << " us after " << it->second.attempts
-              << " sends; given up (is lmf-server running?)\n";
+  if (!pending_sightings_.empty()) {
+    sighting_timer_ = loop_.after(options_.ack_timeout, [this] { resend_sightings(); });
+  } else if (ending_) {
+    send_mission_end();
   }
-  pending_sightings_.erase(it);
-  if (ending_ && pending_sightings_.empty()) send_mission_end();
 }
 
 void PlayerNode::on_sighting_ack(const std::string& channel, const void* data, std::size_t size) {
@@ -362,9 +366,11 @@ void PlayerNode::on_sighting_ack(const std::string& channel, const void* data, s
   } else {
     ++counters_.sightings_acked;
   }
-  loop_.cancel(it->second.timer);
   pending_sightings_.erase(it);
-  if (ending_ && pending_sightings_.empty()) send_mission_end();
+  if (!pending_sightings_.empty()) return;
+  if (sighting_timer_) loop_.cancel(*sighting_timer_);
+  sighting_timer_.reset();
+  if (ending_) send_mission_end();
 }
 
 // ---- the end ----------------------------------------------------------------------------------------

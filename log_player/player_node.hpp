@@ -5,9 +5,11 @@
 //   LMF_SCAN_ACK    in   the agents' acks with their state after each scan
 //   LMF_SIGHTING    out  robot B seen by robot A, with each robot's local map
 //                        seq, x_L? and covariance taken from the ack of its last
-//                        scan at or before the sighting's time; resent after
-//                        ack_timeout until the server answers, at most
-//                        max_attempts sends
+//                        scan at or before the sighting's time; resent until
+//                        the server answers, at most max_attempts sends: every
+//                        ack_timeout, all unanswered ones in time order (a
+//                        server started late gets them in the order lmf-offline
+//                        applies them)
 //   LMF_SIGHTING_ACK in  the server's answer to a sighting: stop resending
 //   LMF_MISSION_END out  at the end, repeated mission_end_repeats times
 //
@@ -129,8 +131,7 @@ class PlayerNode {
   void publish_sightings(std::int64_t before_utime, bool allow_fallback);
   SightingOutcome try_sighting(const mission::SightingInput& sighting, bool allow_fallback);
   using SightingKey = std::tuple<std::int64_t, int, int>;  // (utime, observer, observed)
-  void send_sighting(const SightingKey& key);
-  void sighting_timeout(const SightingKey& key);
+  void resend_sightings();
   std::optional<runtime::ScanAck> ack_at_or_before(std::size_t robot, std::int64_t utime, bool allow_fallback,
                                                    bool* approximate) const;
   void finish();
@@ -158,9 +159,9 @@ class PlayerNode {
   struct PendingSighting {
     lmf::sighting_t message;
     int attempts = 0;
-    int timer = 0;
   };
-  std::map<SightingKey, PendingSighting> pending_sightings_;
+  std::map<SightingKey, PendingSighting> pending_sightings_;  // in time order
+  std::optional<int> sighting_timer_;
   std::set<SightingKey> published_sightings_;
   bool ending_ = false;  // the replay is over; mission_end_t once no sighting is pending
 

@@ -221,11 +221,30 @@ TEST_F(PlayerMission, ResendsASightingUntilTheServerAnswers) {
   EXPECT_EQ(pc.sightings_acked, pc.sightings_published);
   EXPECT_EQ(pc.sighting_resends, 2 * pc.sightings_published);
   EXPECT_EQ(pc.sightings_unanswered, 0);
+  EXPECT_EQ(pc.mission_end_sent, options.mission_end_repeats);
   EXPECT_EQ(s->player->rejects().total(), 0);
   EXPECT_EQ(s->server->sightings(), pc.sightings_published) << "each applied once";
   for (const auto& [key, n] : s->server->sightings_received()) EXPECT_EQ(n, 3) << "sighting at " << std::get<0>(key);
   EXPECT_TRUE(s->server->map().is_joined(1));
   expect_every_map_fused_once(*s);
+}
+
+// Answers that come after the last scan: the mission end waits for them, then
+// goes out once (mission_end_repeats sends), however the resend timer falls.
+TEST_F(PlayerMission, TheMissionEndWaitsForTheLastSightingAnswer) {
+  PlayerOptions options = lockstep_options();
+  options.ack_timeout = 1500ms;  // longer than the replay (about 0.5 s here), so every answer comes after it
+  auto s = make_system(options);
+  s->server->ignore_first_sighting_transmissions(1);
+  s->player->start();
+  ASSERT_TRUE(run_until(s->loop, [&] { return s->all_done(); }, 60s)) << s->player->summary();
+  s->loop.run_for(2 * options.ack_timeout);
+  const auto& pc = s->player->counters();
+  ASSERT_GT(pc.sightings_published, 0);
+  EXPECT_EQ(pc.sightings_acked, pc.sightings_published);
+  EXPECT_EQ(pc.sighting_resends, pc.sightings_published);
+  EXPECT_EQ(pc.mission_end_sent, options.mission_end_repeats);
+  EXPECT_TRUE(s->server->map().is_joined(1));
 }
 
 // Without an answer the player gives up after max_attempts sends and still ends the mission.
