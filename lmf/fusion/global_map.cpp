@@ -13,6 +13,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
+#include "lmf/common/config_check.hpp"
 #include "lmf/spmap/careful_inverse.hpp"
 #include "lmf/spmap/covariance_check.hpp"
 #include "lmf/spmap/segment_ops.hpp"
@@ -216,9 +217,7 @@ struct Candidate {
 // Configuration and validation
 
 void GlobalMapConfig::validate() const {
-  auto require = [](bool ok, const std::string& what) {
-    if (!ok) throw std::invalid_argument("GlobalMapConfig: " + what);
-  };
+  const ConfigCheck require("GlobalMapConfig");
   require(alpha > 0.0 && alpha < 1.0, "alpha must be in (0, 1)");
   require(std::isfinite(local_map_covariance_scale) && local_map_covariance_scale > 0.0,
           "local_map_covariance_scale must be finite and > 0");
@@ -859,7 +858,7 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
       h_grown.head(nK) = h_K;
       for (Eigen::Index a = 0; a < kc; ++a) h_grown(nK + a) = h_all(r0 + ci.kept[static_cast<std::size_t>(a)]);
       h_K = std::move(h_grown);
-      for (const int row : ci.kept) K.push_back(r0 + row);
+      for (const int kept_row : ci.kept) K.push_back(r0 + kept_row);
     }
   }
   rep.pairings_accepted = static_cast<int>(accepted.size());

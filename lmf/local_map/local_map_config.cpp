@@ -2,19 +2,12 @@
 
 #include <cmath>
 #include <numbers>
-#include <sstream>
 #include <stdexcept>
+
+#include "lmf/common/config_check.hpp"
 
 namespace lmf {
 namespace {
-
-template <typename T>
-void require(bool ok, const char* field, T value, const char* requirement) {
-  if (ok) return;
-  std::ostringstream msg;
-  msg << "LocalMapConfig." << field << " = " << value << " is invalid: it must be " << requirement;
-  throw std::invalid_argument(msg.str());
-}
 
 bool finite_nonnegative(double v) { return std::isfinite(v) && v >= 0.0; }
 bool finite_positive(double v) { return std::isfinite(v) && v > 0.0; }
@@ -23,6 +16,7 @@ bool probability(double v) { return std::isfinite(v) && v > 0.0 && v < 1.0; }
 }  // namespace
 
 void LocalMapConfig::validate() const {
+  const ConfigCheck require("LocalMapConfig");
   require(finite_nonnegative(odom_translation_noise_ratio), "odom_translation_noise_ratio",
           odom_translation_noise_ratio, "finite and >= 0");
   require(finite_nonnegative(odom_rotation_noise_ratio), "odom_rotation_noise_ratio", odom_rotation_noise_ratio,

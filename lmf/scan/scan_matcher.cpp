@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -10,17 +9,11 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
+#include "lmf/common/config_check.hpp"
 #include "lmf/spmap/ekf.hpp"
 
 namespace lmf {
 namespace {
-
-void require(bool ok, const char* field, double value, const char* requirement) {
-  if (ok) return;
-  std::ostringstream msg;
-  msg << "ScanMatcherConfig." << field << " = " << value << " is invalid: it must be " << requirement;
-  throw std::invalid_argument(msg.str());
-}
 
 bool usable_range(const LaserScan& scan, std::size_t i, const ScanMatcherConfig& c) {
   const double r = scan.ranges_m[i];
@@ -81,6 +74,7 @@ int correspondence(const ReferenceScan& A, const Eigen::Vector2d& q, double gate
 }  // namespace
 
 void ScanMatcherConfig::validate() const {
+  const ConfigCheck require("ScanMatcherConfig");
   require(std::isfinite(min_range_m) && min_range_m >= 0.0, "min_range_m", min_range_m, "finite and >= 0");
   require(std::isfinite(max_range_m) && max_range_m > min_range_m, "max_range_m", max_range_m,
           "finite and > min_range_m");

@@ -4,23 +4,14 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
-#include <sstream>
 #include <stdexcept>
 
+#include "lmf/common/config_check.hpp"
+
 namespace lmf {
-namespace {
-
-template <typename T>
-void require(bool ok, const char* field, T value, const char* requirement) {
-  if (ok) return;
-  std::ostringstream msg;
-  msg << "SeeThroughConfig." << field << " = " << value << " is invalid: it must be " << requirement;
-  throw std::invalid_argument(msg.str());
-}
-
-}  // namespace
 
 void SeeThroughConfig::validate() const {
+  const ConfigCheck require("SeeThroughConfig");
   require(std::isfinite(margin_m) && margin_m > 0.0, "margin_m", margin_m, "finite and > 0");
   require(std::isfinite(end_margin_m) && end_margin_m >= 0.0, "end_margin_m", end_margin_m, "finite and >= 0");
   require(std::isfinite(min_incidence_rad) && min_incidence_rad >= 0.0 && min_incidence_rad < std::numbers::pi / 2,

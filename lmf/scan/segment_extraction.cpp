@@ -3,22 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 
+#include "lmf/common/config_check.hpp"
+
 namespace lmf {
 namespace {
-
-[[noreturn]] void invalid_field(const char* field, double value, const char* requirement) {
-  std::ostringstream msg;
-  msg << "ExtractionConfig." << field << " = " << value << " is invalid: it must be " << requirement;
-  throw std::invalid_argument(msg.str());
-}
-
-void require(bool ok, const char* field, double value, const char* requirement) {
-  if (!ok) invalid_field(field, value, requirement);
-}
 
 // A valid scan point and the beam it came from.
 struct ScanPoint {
@@ -306,6 +297,7 @@ std::optional<ExtractedSegment> make_segment(const std::vector<ScanPoint>& point
 }  // namespace
 
 void ExtractionConfig::validate() const {
+  const ConfigCheck require("ExtractionConfig");
   require(std::isfinite(min_range_m) && min_range_m >= 0.0, "min_range_m", min_range_m, "finite and >= 0");
   require(std::isfinite(max_range_m) && max_range_m > min_range_m, "max_range_m", max_range_m,
           "finite and > min_range_m");

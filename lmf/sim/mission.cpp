@@ -9,15 +9,12 @@
 #include <tuple>
 #include <utility>
 
+#include "lmf/common/config_check.hpp"
 #include "lmf/sim/random.hpp"
 #include "lmf/sim/ray_cast.hpp"
 
 namespace lmf::sim {
 namespace {
-
-void require(bool ok, const std::string& what) {
-  if (!ok) throw std::invalid_argument("MissionConfig: " + what);
-}
 
 // Stream tags of the independent random streams (mission.hpp).
 constexpr uint64_t kRouteStream = 0x1000;
@@ -49,6 +46,7 @@ std::vector<Person> place_people(const World& world, const PeopleConfig& config,
 }  // namespace
 
 void MissionConfig::validate() const {
+  const ConfigCheck require("MissionConfig");
   require(num_robots >= 1 && num_robots <= 8, "num_robots must be in [1, 8]");
   require(duration_s > 0.0 && duration_s <= 86400.0, "duration_s must be in (0, 86400]");
   require(scan_rate_hz > 0.0 && scan_rate_hz <= 100.0, "scan_rate_hz must be in (0, 100]");

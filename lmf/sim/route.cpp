@@ -8,14 +8,13 @@
 #include <string>
 #include <utility>
 
+#include "lmf/common/config_check.hpp"
 #include "lmf/sim/ray_cast.hpp"
 
 namespace lmf::sim {
 
 void MotionConfig::validate() const {
-  auto require = [](bool ok, const char* what) {
-    if (!ok) throw std::invalid_argument(std::string("MotionConfig: ") + what);
-  };
+  const ConfigCheck require("MotionConfig");
   require(speed_mps > 0.0 && speed_mps <= 3.0, "speed_mps must be in (0, 3]");
   require(turn_radius_m >= 0.1 && turn_radius_m <= 2.0, "turn_radius_m must be in [0.1, 2]");
   require(rotation_speed_radps > 0.0 && rotation_speed_radps <= 3.0, "rotation_speed_radps must be in (0, 3]");

@@ -8,6 +8,7 @@
 #include <string>
 #include <utility>
 
+#include "lmf/common/config_check.hpp"
 #include "lmf/sim/random.hpp"
 
 namespace lmf::sim {
@@ -32,10 +33,6 @@ struct DoorPlan {
   int inside_y;    // y of the room-inside node (dm)
   int room;        // index into rooms
 };
-
-void require(bool ok, const std::string& what) {
-  if (!ok) throw std::invalid_argument("WorldConfig: " + what);
-}
 
 // A horizontal row of rooms along a corridor (the corridors with rooms all run along x).
 struct RowSpec {
@@ -363,6 +360,7 @@ class Builder {
 }  // namespace
 
 void WorldConfig::validate() const {
+  const ConfigCheck require("WorldConfig");
   require(ring_length_m >= 24.0 && ring_length_m <= 400.0, "ring_length_m must be in [24, 400]");
   require(ring_width_m >= 16.0 && ring_width_m <= 400.0, "ring_width_m must be in [16, 400]");
   require(corridor_width_m >= 1.4 && corridor_width_m <= 4.0, "corridor_width_m must be in [1.4, 4]");
