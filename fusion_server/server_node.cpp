@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "fusion_server/sighting_conversion.hpp"
 #include "lmf/fusion/global_map_archive.hpp"
 #include "lmf/fusion/map_export.hpp"
 #include "lmf/mission/mission_report.hpp"
@@ -71,22 +72,6 @@ json counts_json(const fusion::MapCounts& c) {
           {"graph_edges", c.graph_edges},
           {"queued_local_maps", c.queued_local_maps},
           {"state_dimension", c.state_dimension}};
-}
-
-fusion::RobotSighting to_fusion(const runtime::Sighting& s) {
-  fusion::RobotSighting out;
-  out.utime = s.utime;
-  out.observer_id = s.observer_id;
-  out.observed_id = s.observed_id;
-  out.observer_seq = s.observer_seq;
-  out.x_LA = s.x_LA;
-  out.cov_LA = s.cov_LA;
-  out.x_AB = s.x_AB;
-  out.cov_AB = s.covariance;
-  out.observed_seq = s.observed_seq;
-  out.x_LB = s.x_LB;
-  out.cov_LB = s.cov_LB;
-  return out;
 }
 
 }  // namespace
@@ -345,7 +330,7 @@ void ServerNode::sighting_task(const runtime::Sighting& sighting, Clock::time_po
   outcome->robot_id = sighting.observed_id;
   outcome->sighting = sighting;
   try {
-    const fusion::SightingResult result = map_.add_sighting(to_fusion(sighting));
+    const fusion::SightingResult result = map_.add_sighting(to_robot_sighting(sighting));
     record_fusions(result.fused, wait_ms);
     for (const auto& r : result.fused) outcome->fused.emplace_back(r.robot_id, r.seq);
     sightings_.push_back({sighting, mission::sighting_status_name(result.status)});

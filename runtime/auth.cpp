@@ -27,11 +27,11 @@
 #include "lmf/global_map_t.hpp"
 #include "lmf/laser_scan_t.hpp"
 #include "lmf/local_map_ack_t.hpp"
-#include "lmf/sighting_ack_t.hpp"
 #include "lmf/local_map_t.hpp"
 #include "lmf/mission_end_t.hpp"
 #include "lmf/scan_ack_t.hpp"
 #include "lmf/server_status_t.hpp"
+#include "lmf/sighting_ack_t.hpp"
 #include "lmf/sighting_t.hpp"
 
 namespace lmf::runtime::auth {

@@ -327,22 +327,6 @@ const Corpus& corpus() {
   return c;
 }
 
-fusion::RobotSighting to_fusion(const runtime::Sighting& s) {
-  fusion::RobotSighting out;
-  out.utime = s.utime;
-  out.observer_id = s.observer_id;
-  out.observed_id = s.observed_id;
-  out.observer_seq = s.observer_seq;
-  out.x_LA = s.x_LA;
-  out.cov_LA = s.cov_LA;
-  out.x_AB = s.x_AB;
-  out.cov_AB = s.covariance;
-  out.observed_seq = s.observed_seq;
-  out.x_LB = s.x_LB;
-  out.cov_LB = s.cov_LB;
-  return out;
-}
-
 MapFingerprint fingerprint(const fusion::GlobalMap& map) {
   MapFingerprint f;
   f.counts = map.counts();

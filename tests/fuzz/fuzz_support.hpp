@@ -32,6 +32,7 @@
 #include "lmf/local_map/local_map_snapshot.hpp"
 #include "lmf/scan/laser_scan.hpp"
 #include "lmf/server_status_t.hpp"
+#include "fusion_server/sighting_conversion.hpp"
 #include "runtime/convert.hpp"
 #include "runtime/messages.hpp"
 
@@ -83,9 +84,6 @@ struct Corpus {
   std::vector<runtime::RobotScan> next_scans;
 };
 const Corpus& corpus();
-
-// lmf::fusion's view of a runtime sighting (as lmf-server converts it).
-fusion::RobotSighting to_fusion(const runtime::Sighting& s);
 
 // A cheap, exact fingerprint of everything observable in a GlobalMap: counts,
 // robots, queued/fused records, entities, a hash of the covariance's lower

@@ -165,7 +165,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     case kSighting: {
       const auto decoded = lmf::runtime::decode<lmf::runtime::Sighting>(bytes, length);
       if (!decoded_or_note(decoded)) return 0;
-      const lmf::fusion::RobotSighting s = lmf::fuzz::to_fusion(decoded.value());
+      const lmf::fusion::RobotSighting s = lmf::server::to_robot_sighting(decoded.value());
       apply("add_sighting(decoded sighting)", [&](lmf::fusion::GlobalMap& map) { map.add_sighting(s); });
       break;
     }

@@ -162,7 +162,7 @@ TEST_F(ServerHostileInput, EveryKindOfBadMessageIsRejectedByReasonAndTheMapIsTha
   ASSERT_TRUE(send(node, channels_.local_map(), msg(make_map(0, 0))));
   reference.fuse(make_map(0, 0));
   ASSERT_TRUE(send(node, channels_.sighting(), msg(make_sighting(0, 2, 500'000))));
-  reference.add_sighting(lmf::fuzz::to_fusion(make_sighting(0, 2, 500'000)));
+  reference.add_sighting(lmf::server::to_robot_sighting(make_sighting(0, 2, 500'000)));
   const std::int64_t fusions = node.view().fusion_count;
   ASSERT_EQ(node.view().counts.robots_joined, 2);
   ASSERT_EQ(lmf::fuzz::fingerprint(reference).counts.robots_joined, 2);
@@ -286,7 +286,7 @@ TEST_F(ServerHostileInput, MutatedMessagesLeaveTheSameMapAsTheServersDecisionsOn
         continue;
       }
       try {
-        reference.add_sighting(lmf::fuzz::to_fusion(s.value()));
+        reference.add_sighting(lmf::server::to_robot_sighting(s.value()));
       } catch (const lmf::fusion::InvalidInput&) {
         ++reference_rejects;
       }

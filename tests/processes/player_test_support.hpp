@@ -15,6 +15,7 @@
 
 #include <gtest/gtest.h>
 
+#include "fusion_server/sighting_conversion.hpp"
 #include "lmf/fusion/global_map.hpp"
 #include "lmf/mission/mission_inputs.hpp"
 #include "lmf/mission/offline_mission.hpp"
@@ -157,20 +158,8 @@ class FakeServer {
       bus_.publish(channels_.sighting_ack(), runtime::to_message(ack));
       return;
     }
-    fusion::RobotSighting r;
-    r.utime = s.utime;
-    r.observer_id = s.observer_id;
-    r.observed_id = s.observed_id;
-    r.observer_seq = s.observer_seq;
-    r.x_LA = s.x_LA;
-    r.cov_LA = s.cov_LA;
-    r.x_AB = s.x_AB;
-    r.cov_AB = s.covariance;
-    r.observed_seq = s.observed_seq;
-    r.x_LB = s.x_LB;
-    r.cov_LB = s.cov_LB;
     ++sightings_;
-    record(map_.add_sighting(r).fused);
+    record(map_.add_sighting(server::to_robot_sighting(s)).fused);
     bus_.publish(channels_.sighting_ack(), runtime::to_message(ack));
   }
 
