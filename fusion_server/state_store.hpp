@@ -74,8 +74,9 @@
 
 namespace lmf::server {
 
-// 2: the global map inside is kGlobalMapArchiveVersion 2.
-inline constexpr std::uint32_t kStateVersion = 2;
+// 3: the global map inside is kGlobalMapArchiveVersion 3 (robot footprints), fusion
+// reports carry footprint_segments_removed.
+inline constexpr std::uint32_t kStateVersion = 3;
 
 // The state directory cannot be used (in use, unreadable, every snapshot corrupt, I/O error).
 class StateError : public std::runtime_error {

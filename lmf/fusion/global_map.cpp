@@ -234,6 +234,8 @@ void GlobalMapConfig::validate() const {
           "snapshot_tolerance must be finite and >= 0");
   require(std::isfinite(max_coordinate_m) && max_coordinate_m > 0.0, "max_coordinate_m must be finite and > 0");
   require(frame_history_per_robot >= 0, "frame_history_per_robot must be >= 0");
+  require(std::isfinite(footprint_radius_m) && footprint_radius_m >= 0.0,
+          "footprint_radius_m must be finite and >= 0");
 }
 
 bool FusionReport::covariance_ok() const {
@@ -241,13 +243,21 @@ bool FusionReport::covariance_ok() const {
   return !min_ldlt_pivot || *min_ldlt_pivot >= -kPsdTolerance;
 }
 
-GlobalMap::GlobalMap(GlobalMapConfig config) : config_(config) { config_.validate(); }
+GlobalMap::GlobalMap(GlobalMapConfig config) : config_(config) {
+  config_.validate();
+  if (config_.footprint_radius_m > 0.0) footprints_.emplace(config_.footprint_radius_m);
+}
+
+std::optional<std::pair<Reason, std::string>> GlobalMap::pose_problem(const Pose2& pose) const {
+  if (!finite(pose)) return std::pair{Reason::kNonFinite, std::string(" is not finite")};
+  if (std::abs(pose.x) > config_.max_coordinate_m || std::abs(pose.y) > config_.max_coordinate_m) {
+    return std::pair{Reason::kOutOfRange, std::string(" is beyond max_coordinate_m")};
+  }
+  return std::nullopt;
+}
 
 void GlobalMap::check_pose(const Pose2& pose, const std::string& what) const {
-  if (!finite(pose)) throw InvalidInput(Reason::kNonFinite, what + " is not finite");
-  if (std::abs(pose.x) > config_.max_coordinate_m || std::abs(pose.y) > config_.max_coordinate_m) {
-    throw InvalidInput(Reason::kOutOfRange, what + " is beyond max_coordinate_m");
-  }
+  if (const auto problem = pose_problem(pose)) throw InvalidInput(problem->first, what + problem->second);
 }
 
 void GlobalMap::check_covariance(const Eigen::MatrixXd& P, const std::string& what) const {
@@ -274,6 +284,11 @@ void GlobalMap::validate(const LocalMapSnapshot& s) const {
     if (!std::isfinite(seg.length_m)) throw InvalidInput(Reason::kNonFinite, name + " length is not finite");
     if (seg.length_m <= 0.0 || seg.length_m > config_.max_coordinate_m) {
       throw InvalidInput(Reason::kOutOfRange, name + " has length " + std::to_string(seg.length_m) + " (must be > 0)");
+    }
+  }
+  for (std::size_t i = 0; i < s.scan_poses.size(); ++i) {
+    if (const auto problem = pose_problem(s.scan_poses[i].x_LR)) {
+      throw InvalidInput(problem->first, at + ": scan pose " + std::to_string(i) + problem->second);
     }
   }
   const auto expected = static_cast<Eigen::Index>(3 + 2 * s.segments.size());
@@ -977,6 +992,7 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
     rec.history.erase(rec.history.begin());
   }
   retire_frames(robot_id, removals);
+  if (footprints_) remove_footprint_segments(s, x_WL_fused, removals, rep);
   rep.time.frames_s = clock.lap();
 
   state_.remove(removals);
@@ -1008,6 +1024,28 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
   rep.size_after = counts();
   rep.time.total_s = clock.total();
   return rep;
+}
+
+void GlobalMap::remove_footprint_segments(const LocalMapSnapshot& s, const Pose2& x_WL,
+                                          std::vector<EntityId>& removals, FusionReport& rep) {
+  for (const ScanPose& p : s.scan_poses) {
+    const Pose2 x_WR = compose(x_WL, p.x_LR);
+    footprints_->add({x_WR.x, x_WR.y});
+  }
+  // Every segment, not only this map's: this map's poses may cover a segment
+  // another robot shipped before (the body it saw), and this map's segments
+  // may lie on an earlier pose of another robot.
+  const std::unordered_set<EntityId> leaving(removals.begin(), removals.end());
+  const double diameter = 2.0 * footprints_->radius();
+  for (const Entity& e : state_.entities()) {
+    if (e.kind != EntityKind::kSegment || e.length_m > diameter || leaving.count(e.id) != 0) continue;
+    const Pose2 x_WS = state_.root_location(e.id);
+    const double half = 0.5 * e.length_m;
+    if (footprints_->covers(x_WS.transform_point({-half, 0.0}), x_WS.transform_point({half, 0.0}))) {
+      removals.push_back(e.id);
+      ++rep.footprint_segments_removed;
+    }
+  }
 }
 
 void GlobalMap::retire_frames(int robot_id, std::vector<EntityId>& removals) {

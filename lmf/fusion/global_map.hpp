@@ -47,6 +47,7 @@
 
 #include "lmf/fusion/fusion_equations.hpp"
 #include "lmf/fusion/global_state.hpp"
+#include "lmf/fusion/robot_footprints.hpp"
 #include "lmf/geometry/pose2.hpp"
 #include "lmf/local_map/local_map_snapshot.hpp"
 #include "lmf/spmap/segment_ops.hpp"
@@ -137,6 +138,14 @@ struct GlobalMapConfig {
   // Frames of fused local maps remembered (estimate + marginal) for sightings
   // that arrive after their observer's local map was fused.
   int frame_history_per_robot = 256;
+  // Robot footprints (beyond the paper; robot_footprints.hpp): a segment lying
+  // entirely within this distance (m) of one scan pose of any robot is a robot
+  // body that a laser saw, not a wall, and leaves the map after the fusion that
+  // brings either the segment or that pose. The body radius plus the error of
+  // the robots' poses relative to each other. 0 turns it off (the default: a
+  // robot's size is not known here); config/sim.json: 0.35 m for the
+  // simulator's 0.25 m discs.
+  double footprint_radius_m = 0.0;
 
   // Throws std::invalid_argument naming the first bad field.
   void validate() const;
@@ -194,6 +203,7 @@ struct FusionReport {
   int global_segments_fused = 0;
   int global_fusions_rejected = 0;  // pairs that matched one local segment but failed their own test
   int new_segments = 0;
+  int footprint_segments_removed = 0;  // segments inside a robot footprint (GlobalMapConfig::footprint_radius_m)
   std::optional<EntityId> new_submap;
   Pose2 x_WL_next;  // the robot's next local frame
 
@@ -344,7 +354,13 @@ class GlobalMap {
   // for one GlobalState::transform_perturbations over all extended segments.
   void extend_to_cover(EntityId segment, const spmap::Interval& interval,
                        std::map<EntityId, Eigen::Matrix2d>& shifts);
+  // Adds the snapshot's scan poses (in W, L_r as fused) to the footprints and
+  // appends every segment inside a footprint to `removals`.
+  void remove_footprint_segments(const LocalMapSnapshot& snapshot, const Pose2& x_WL,
+                                 std::vector<EntityId>& removals, FusionReport& report);
   bool is_submap(EntityId frame) const;
+  // What is wrong with a pose from outside (" is not finite", ...), if anything.
+  std::optional<std::pair<InvalidInput::Reason, std::string>> pose_problem(const Pose2& pose) const;
   void check_pose(const Pose2& pose, const std::string& what) const;
   void check_covariance(const Eigen::MatrixXd& P, const std::string& what) const;
 
@@ -354,6 +370,7 @@ class GlobalMap {
   std::vector<SubmapRecord> submaps_;
   std::set<std::pair<EntityId, EntityId>> paired_edges_;
   std::deque<RobotSighting> pending_sightings_;
+  std::optional<RobotFootprints> footprints_;  // when footprint_radius_m > 0
   bool any_joined_ = false;
   bool resolving_ = false;
 };

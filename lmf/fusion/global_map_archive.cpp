@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cmath>
 #include <cstring>
 #include <istream>
 #include <limits>
@@ -278,7 +279,8 @@ class GlobalMapArchive {
 //               gate_sigmas, min_overlap_m, careful_relative_tolerance,
 //               careful_absolute_floor, snapshot_tolerance, max_coordinate_m,
 //               local_map_covariance_scale),
-//               u8 first_robot_defines_world, u8 health, i32 frame_history_per_robot
+//               u8 first_robot_defines_world, u8 health, i32 frame_history_per_robot,
+//               f64 footprint_radius_m
 //   state       i64 next_id, i64 n, i64 capacity, u64 count + entities
 //               (i64 id, u8 kind, pose, f64 length, u8 has_parent, i64 parent,
 //               i64 offset), then P's lower triangle by columns (column j:
@@ -292,6 +294,7 @@ class GlobalMapArchive {
 //   edges       u64 count + (i64 a, i64 b)
 //   sightings   u64 count + pending RobotSighting (see write_sighting)
 //   flags       u8 any_joined, u8 resolving
+//   footprints  u64 count + (f64 x, f64 y) in the order added (0 when off)
 void GlobalMapArchive::write_config(ArchiveWriter& w, const GlobalMapConfig& c) {
   for (const double v : {c.alpha, c.gate_angle_rad, c.gate_distance_m, c.gate_gap_m, c.gate_sigmas, c.min_overlap_m,
                          c.careful_relative_tolerance, c.careful_absolute_floor, c.snapshot_tolerance,
@@ -301,6 +304,7 @@ void GlobalMapArchive::write_config(ArchiveWriter& w, const GlobalMapConfig& c) 
   w.boolean(c.first_robot_defines_world);
   w.u8(static_cast<std::uint8_t>(c.health));
   w.i32(c.frame_history_per_robot);
+  w.f64(c.footprint_radius_m);
 }
 
 GlobalMapConfig GlobalMapArchive::read_config(ArchiveReader& r) {
@@ -315,6 +319,7 @@ GlobalMapConfig GlobalMapArchive::read_config(ArchiveReader& r) {
   if (health > static_cast<std::uint8_t>(HealthCheck::kFullEigen)) r.fail("corrupt: health check " + std::to_string(health));
   c.health = static_cast<HealthCheck>(health);
   c.frame_history_per_robot = r.i32();
+  c.footprint_radius_m = r.f64();
   try {
     c.validate();
   } catch (const std::invalid_argument& e) {
@@ -436,6 +441,13 @@ void GlobalMapArchive::write(ArchiveWriter& w, const GlobalMap& map) {
   for (const RobotSighting& s : map.pending_sightings_) write_sighting(w, s);
   w.boolean(map.any_joined_);
   w.boolean(map.resolving_);
+  const std::vector<Eigen::Vector2d> none;
+  const std::vector<Eigen::Vector2d>& footprints = map.footprints_ ? map.footprints_->positions() : none;
+  w.count(footprints.size());
+  for (const Eigen::Vector2d& p : footprints) {
+    w.f64(p.x());
+    w.f64(p.y());
+  }
 }
 
 GlobalMap GlobalMapArchive::read(ArchiveReader& r) {
@@ -505,6 +517,14 @@ GlobalMap GlobalMapArchive::read(ArchiveReader& r) {
   map.any_joined_ = r.boolean();
   map.resolving_ = r.boolean();
   if (map.resolving_) r.fail("corrupt map: archived in the middle of resolving sightings");
+  const std::size_t footprints = r.count(16);
+  if (footprints > 0 && !map.footprints_) r.fail("corrupt map: robot footprints with footprint_radius_m 0");
+  for (std::size_t i = 0; i < footprints; ++i) {
+    const double x = r.f64();
+    const double y = r.f64();
+    if (!std::isfinite(x) || !std::isfinite(y)) r.fail("corrupt map: a robot footprint is not finite");
+    map.footprints_->add({x, y});
+  }
   return map;
 }
 
@@ -586,7 +606,7 @@ void write_fusion_report(ArchiveWriter& w, const FusionReport& f) {
   w.f64(f.update_distance2);
   w.i64(f.update_dimension);
   for (const int v : {f.segments_extended, f.local_segments_removed, f.global_segments_fused,
-                      f.global_fusions_rejected, f.new_segments}) {
+                      f.global_fusions_rejected, f.new_segments, f.footprint_segments_removed}) {
     w.i32(v);
   }
   w.boolean(f.new_submap.has_value());
@@ -620,7 +640,8 @@ FusionReport read_fusion_report(ArchiveReader& r) {
   f.update_distance2 = r.f64();
   f.update_dimension = r.i64();
   for (int* v : {&f.segments_extended, &f.local_segments_removed, &f.global_segments_fused,
-                 &f.global_fusions_rejected, &f.new_segments}) {
+                 &f.global_fusions_rejected, &f.new_segments,
+                 &f.footprint_segments_removed}) {
     *v = r.i32();
   }
   const bool has_submap = r.boolean();

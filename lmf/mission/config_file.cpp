@@ -23,6 +23,7 @@ void read_config(io::JsonReader& r, fusion::GlobalMapConfig& c) {
                  {"full_ldlt", fusion::HealthCheck::kFullLdlt},
                  {"full_eigen", fusion::HealthCheck::kFullEigen}});
   r.read("frame_history_per_robot", c.frame_history_per_robot);
+  r.read("footprint_radius_m", c.footprint_radius_m);
 }
 
 void read_config(io::JsonReader& r, SightingNoise& c) {

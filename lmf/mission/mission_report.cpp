@@ -87,6 +87,7 @@ json fusion_report_json(const fusion::FusionReport& r) {
             {"segments_extended", r.segments_extended},
             {"global_segments_fused", r.global_segments_fused},
             {"new_segments", r.new_segments},
+            {"footprint_segments_removed", r.footprint_segments_removed},
             {"segments_after", r.size_after.segments},
             {"submaps_after", r.size_after.submaps},
             {"graph_edges_after", r.size_after.graph_edges},
@@ -265,6 +266,12 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
   std::size_t seen_through = 0;
   for (const RobotResult& r : result.robots) seen_through += r.segments_seen_through;
   s << "local maps: " << seen_through << " segments removed as seen through (free-space evidence)\n";
+  if (mission.global_map().config().footprint_radius_m > 0.0) {
+    int in_footprints = 0;
+    for (const fusion::FusionReport& f : result.fusions) in_footprints += f.footprint_segments_removed;
+    s << "global map: " << in_footprints << " segments removed inside robot footprints (footprint_radius_m "
+      << mission.global_map().config().footprint_radius_m << ")\n";
+  }
   const fusion::MapCounts counts = mission.global_map().counts();
   std::snprintf(line, sizeof line,
                 "map: %d segments, %d submaps, %d graph edges; %zu fusions (median %.1f ms, max %.1f ms); "

@@ -130,6 +130,7 @@ TEST(GlobalMapArchiveTest, RestoredMapContinuesBitIdentically) {
   GlobalMapConfig config;
   config.health = HealthCheck::kFullLdlt;
   config.frame_history_per_robot = 3;
+  config.footprint_radius_m = 0.35;  // the scan poses' footprints are archived too
   GlobalMap original(config);
   std::mt19937 rng(7);
   first_half(original, rng);
@@ -220,10 +221,10 @@ TEST(GlobalMapArchiveTest, BrokenInvariantsAreRejectedEvenWithAGoodChecksum) {
   std::string payload;
   ArchiveWriter w(payload);
   write_global_map(w, map);
-  // The first entity's offset sits after the config (11 f64 + 2 u8 + i32 = 94
-  // bytes), next_id, n, capacity, count (32) and its id, kind, pose, length,
-  // parent flag and parent (58 - 8 bytes): set it to 1.
-  const std::size_t offset_at = 94 + 32 + 50;
+  // The first entity's offset sits after the config (11 f64 + 2 u8 + i32 + f64
+  // = 102 bytes), next_id, n, capacity, count (32) and its id, kind, pose,
+  // length, parent flag and parent (58 - 8 bytes): set it to 1.
+  const std::size_t offset_at = 102 + 32 + 50;
   std::int64_t offset = 0;
   std::memcpy(&offset, payload.data() + offset_at, sizeof offset);
   ASSERT_EQ(offset, 0);

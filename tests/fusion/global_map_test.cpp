@@ -575,5 +575,106 @@ TEST(GlobalMapTest, InvalidSnapshotsAreRejectedAndTheMapIsUnchanged) {
   }
 }
 
+// Robot footprints (GlobalMapConfig::footprint_radius_m): robot 0 maps a room
+// and a 0.4 m "wall" that is robot 1's body; robot 1's trajectory passes there.
+struct FootprintScene {
+  std::vector<Wall> room = synthetic::room(0.0, 0.0, 8.0, 6.0);
+  Wall body{Pose2(2.0, 1.0, M_PI / 2), 0.4};         // seen by robot 0 while robot 1 stood at (2.1, 1.0)
+  Wall short_wall{Pose2(-2.0, -1.0, 0.0), 0.4};      // a real one, 0.5 m beside robot 1's path
+  Pose2 x_WL1{-3.0, -1.5, 0.0};
+
+  LocalMapSnapshot robot0_map() const {
+    std::vector<Wall> seen = room;
+    seen.push_back(body);
+    seen.push_back(short_wall);
+    return synthetic::make_snapshot(0, 0, Pose2(), Pose2(1.0, 0.0, 0.1), seen);
+  }
+  // Robot 1 drives from x_WL1 along y = -1.5 to (2.1, -1.5), then up to (2.1, 1.0).
+  LocalMapSnapshot robot1_map() const {
+    const Pose2 x_LR(5.1, 2.5, M_PI / 2);
+    LocalMapSnapshot s = synthetic::make_snapshot(1, 0, x_WL1, x_LR, {});
+    s.scan_poses.clear();
+    for (int i = 0; i <= 51; ++i) s.scan_poses.push_back({i, Pose2(0.1 * i, 0.0, 0.0)});
+    for (int i = 1; i <= 25; ++i) s.scan_poses.push_back({51 + i, Pose2(5.1, 0.1 * i, M_PI / 2)});
+    return s;
+  }
+};
+
+GlobalMapConfig footprint_config(double radius_m) {
+  GlobalMapConfig c = checked_config();
+  c.footprint_radius_m = radius_m;
+  return c;
+}
+
+TEST(GlobalMapTest, ASegmentOnAnotherRobotsPathLeavesTheMap) {
+  const FootprintScene scene;
+  GlobalMap map(footprint_config(0.35));
+  ASSERT_EQ(map.fuse(scene.robot0_map()).size(), 1u);
+  ASSERT_EQ(map.counts().segments, 6);
+  ASSERT_NE(find_segment(map.segments(), scene.body), nullptr);
+
+  map.join_robot(1, scene.x_WL1);
+  const std::vector<FusionReport> r = map.fuse(scene.robot1_map());
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].footprint_segments_removed, 1);
+  EXPECT_EQ(map.counts().segments, 5);
+  EXPECT_EQ(find_segment(map.segments(), scene.body), nullptr);
+  EXPECT_NE(find_segment(map.segments(), scene.short_wall), nullptr);
+  for (const Wall& w : scene.room) EXPECT_NE(find_segment(map.segments(), w), nullptr);
+  EXPECT_TRUE(r[0].covariance_ok());
+  EXPECT_GE(min_eigenvalue(map), -1e-12);
+}
+
+TEST(GlobalMapTest, ASegmentArrivingAfterThePathThroughItIsRemovedToo) {
+  const FootprintScene scene;
+  GlobalMap map(footprint_config(0.35));
+  map.join_robot(0, Pose2());
+  map.join_robot(1, scene.x_WL1);
+  ASSERT_EQ(map.fuse(scene.robot1_map()).size(), 1u);
+  const std::vector<FusionReport> r = map.fuse(scene.robot0_map());
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].new_segments, 6);
+  EXPECT_EQ(r[0].footprint_segments_removed, 1);
+  EXPECT_EQ(map.counts().segments, 5);
+  EXPECT_EQ(find_segment(map.segments(), scene.body), nullptr);
+  EXPECT_NE(find_segment(map.segments(), scene.short_wall), nullptr);
+  EXPECT_GE(min_eigenvalue(map), -1e-12);
+}
+
+TEST(GlobalMapTest, FootprintsAreOffByDefaultAndTheRadiusMatters) {
+  const FootprintScene scene;
+  for (const double radius : {0.0, 0.2}) {  // off; smaller than the body's half length
+    GlobalMap map(footprint_config(radius));
+    map.fuse(scene.robot0_map());
+    map.join_robot(1, scene.x_WL1);
+    const std::vector<FusionReport> r = map.fuse(scene.robot1_map());
+    ASSERT_EQ(r.size(), 1u) << radius;
+    EXPECT_EQ(r[0].footprint_segments_removed, 0) << radius;
+    EXPECT_EQ(map.counts().segments, 6) << radius;
+  }
+  EXPECT_EQ(GlobalMapConfig{}.footprint_radius_m, 0.0);
+  GlobalMapConfig bad;
+  bad.footprint_radius_m = -0.1;
+  EXPECT_THROW(GlobalMap{bad}, std::invalid_argument);
+  bad.footprint_radius_m = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(GlobalMap{bad}, std::invalid_argument);
+}
+
+TEST(GlobalMapTest, ASnapshotWithANonFiniteScanPoseIsRejected) {
+  const FootprintScene scene;
+  GlobalMap map(footprint_config(0.35));
+  LocalMapSnapshot s = scene.robot0_map();
+  s.scan_poses[1].x_LR.x = std::numeric_limits<double>::quiet_NaN();
+  try {
+    map.fuse(s);
+    FAIL() << "accepted";
+  } catch (const InvalidInput& e) {
+    EXPECT_EQ(e.reason(), InvalidInput::Reason::kNonFinite);
+    EXPECT_NE(std::string(e.what()).find("scan pose 1"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(map.counts().segments, 0);
+  EXPECT_FALSE(map.has_fused(0, 0));
+}
+
 }  // namespace
 }  // namespace lmf::fusion

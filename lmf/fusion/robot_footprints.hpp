@@ -1,0 +1,52 @@
+// Where the robots have been (beyond the paper): every fused scan pose's
+// position in W, as estimated when its local map was fused.
+//
+// No wall can lie where a robot's body was. A segment lying entirely within the
+// footprint radius of one recorded position is therefore another robot (or
+// something right next to one) that a laser saw, not a wall: robots see each
+// other's bodies, and a robot that stood still while another one passed is not
+// seen through before the observer's local map ships (the local map's
+// free-space evidence, lmf/scan/see_through.hpp, cannot remove it then).
+// GlobalMapConfig::footprint_radius_m: the body radius plus the error of the
+// robots' poses relative to each other.
+//
+// A uniform grid of cells of the radius: the positions within the radius of a
+// point lie in the point's cell or its 8 neighbours.
+#pragma once
+#include <cstddef>
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace lmf::fusion {
+
+class RobotFootprints {
+ public:
+  // Throws std::invalid_argument unless radius_m is finite and > 0.
+  explicit RobotFootprints(double radius_m);
+
+  double radius() const { return radius_; }
+
+  // Throws std::invalid_argument for a non-finite position.
+  void add(const Eigen::Vector2d& position_W);
+
+  // True when one recorded position lies within the radius of both a and b, and
+  // so of every point of the segment ab (a disc is convex).
+  bool covers(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const;
+
+  std::size_t size() const { return positions_.size(); }
+  // In the order added (for the archive).
+  const std::vector<Eigen::Vector2d>& positions() const { return positions_; }
+
+ private:
+  std::uint64_t key(std::int64_t ix, std::int64_t iy) const;
+  std::int64_t cell(double v) const;
+
+  double radius_;
+  std::vector<Eigen::Vector2d> positions_;
+  std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> grid_;  // indices into positions_
+};
+
+}  // namespace lmf::fusion
