@@ -51,6 +51,8 @@ print(f"lmf-server: {msg['local_maps_received']} local maps received, {msg['acks
       f"(p50 {t['p50_ms']:.1f} ms, p99 {t['p99_ms']:.1f} ms, max {t['max_ms']:.1f} ms); "
       f"map {m['segments']} segments, {m['submaps']} submaps, {m['graph_edges']} graph edges, "
       f"{m['robots_joined']} robots joined; P PSD throughout: {'yes' if r['global_covariance_always_ok'] else 'NO'}")
+bodies = sum(f.get("footprint_segments_removed", 0) for f in r.get("fusions", []))
+print(f"segments removed inside robot footprints (robot bodies seen by the lasers): {bodies}")
 status = {}
 for s in r.get("sightings", []): status[s["status"]] = status.get(s["status"], 0) + 1
 print("sightings:", ", ".join(f"{n} {k}" for k, n in sorted(status.items())) or "none",
