@@ -59,6 +59,33 @@ TEST(OfflineMission, SimulatedTwoRobotMissionJoinsBySightingAndMaps) {
   EXPECT_GT(mission.global_map().counts().segments, 20);
 }
 
+// Robot footprints on the simulator (its robots see each other as discs): the
+// segments they remove were no walls. With and without them, the same segments
+// match a wall; those that do not are fewer by exactly the number removed.
+TEST(OfflineMission, RobotFootprintsRemoveBodiesAndNoWall) {
+  const MissionInputs inputs = load_sim_folder(simulated_folder(), SightingNoise{});
+  MissionConfig with = load_mission_config(std::string(LMF_CONFIG_DIR) + "/sim.json");
+  ASSERT_GT(with.global_map.footprint_radius_m, 0.0);
+  MissionConfig without = with;
+  without.global_map.footprint_radius_m = 0.0;
+  OfflineMission a(with, inputs);
+  OfflineMission b(without, inputs);
+  const MissionResult ra = a.run();
+  const MissionResult rb = b.run();
+  int removed = 0;
+  for (const fusion::FusionReport& f : ra.fusions) removed += f.footprint_segments_removed;
+  for (const fusion::FusionReport& f : rb.fusions) EXPECT_EQ(f.footprint_segments_removed, 0);
+  EXPECT_GE(removed, 1);  // one robot seen standing by the other (seed 3)
+  const auto sa = score_mission(ra, a.inputs(), a.global_map());
+  const auto sb = score_mission(rb, b.inputs(), b.global_map());
+  ASSERT_TRUE(sa && sa->map && sb && sb->map);
+  EXPECT_EQ(a.global_map().counts().segments + removed, b.global_map().counts().segments);
+  EXPECT_EQ(sa->map->segments + static_cast<std::size_t>(removed), sb->map->segments);
+  EXPECT_EQ(sa->map->segments - sa->map->unmatched_segments, sb->map->segments - sb->map->unmatched_segments);
+  EXPECT_EQ(sa->map->unmatched_segments + static_cast<std::size_t>(removed), sb->map->unmatched_segments);
+  EXPECT_NEAR(sa->ate.position_rmse_m, sb->ate.position_rmse_m, 1e-3);
+}
+
 TEST(OfflineMission, RepeatedRunsAreIdentical) {
   const MissionInputs inputs = load_sim_folder(simulated_folder(), SightingNoise{});
   const MissionResult a = run(inputs);
