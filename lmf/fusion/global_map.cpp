@@ -992,6 +992,7 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
     rec.history.erase(rec.history.begin());
   }
   retire_frames(robot_id, removals);
+  // (8) Beyond the paper: segments inside a robot's footprint are bodies, not walls.
   if (footprints_) remove_footprint_segments(s, x_WL_fused, removals, rep);
   rep.time.frames_s = clock.lap();
 

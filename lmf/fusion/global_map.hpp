@@ -17,7 +17,8 @@
 // geometric update of paired global segments, removal of the used local
 // segments, fusion of global segments that matched one local segment, a new
 // submap for the unpaired local segments, L_r ← L_r ⊕ x_R, and the environment
-// graph (submap frames as nodes).
+// graph (submap frames as nodes). Beyond the paper, with footprint_radius_m > 0:
+// segments lying inside one robot footprint (robot_footprints.hpp) leave the map.
 //
 // Robots join with a known frame (join_robot) or through a sighting by a joined
 // robot (add_sighting). Local maps of robots that have not joined, or that
