@@ -316,6 +316,8 @@ class GlobalMap {
   std::vector<SubmapView> submaps() const;
   std::vector<GraphEdge> graph_edges() const;
   MapCounts counts() const;
+  // Robot positions the footprint step remembers (0 when footprint_radius_m is 0).
+  std::size_t footprint_positions() const { return footprints_ ? footprints_->size() : 0; }
   const GlobalState& state() const { return state_; }
 
   // Pre-sizes the covariance buffer (e.g. a server expecting a large map).

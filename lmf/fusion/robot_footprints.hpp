@@ -11,7 +11,12 @@
 // robots' poses relative to each other.
 //
 // A uniform grid of cells of the radius: the positions within the radius of a
-// point lie in the point's cell or its 8 neighbours.
+// point lie in the point's cell or its 8 neighbours. A position within
+// min_spacing() = radius / 20 of a recorded one is not recorded: a robot that
+// stands still for an hour adds one position, not one per scan, so memory and
+// the cost of covers() grow with the area visited, not with the time spent
+// (a segment only the skipped disc would have covered reaches at most that
+// spacing beyond the recorded disc).
 #pragma once
 #include <cstddef>
 #include <cstdint>
@@ -28,9 +33,11 @@ class RobotFootprints {
   explicit RobotFootprints(double radius_m);
 
   double radius() const { return radius_; }
+  double min_spacing() const { return radius_ / 20.0; }
 
-  // Throws std::invalid_argument for a non-finite position.
-  void add(const Eigen::Vector2d& position_W);
+  // Records the position unless one within min_spacing() is recorded already;
+  // returns whether it did. Throws std::invalid_argument for a non-finite position.
+  bool add(const Eigen::Vector2d& position_W);
 
   // True when one recorded position lies within the radius of both a and b, and
   // so of every point of the segment ab (a disc is convex).
@@ -43,6 +50,9 @@ class RobotFootprints {
  private:
   std::uint64_t key(std::int64_t ix, std::int64_t iy) const;
   std::int64_t cell(double v) const;
+  // True when some recorded position p satisfies pred(p), among those within the radius of `a`.
+  template <typename Pred>
+  bool any_near(const Eigen::Vector2d& a, Pred pred) const;
 
   double radius_;
   std::vector<Eigen::Vector2d> positions_;

@@ -270,7 +270,8 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
     int in_footprints = 0;
     for (const fusion::FusionReport& f : result.fusions) in_footprints += f.footprint_segments_removed;
     s << "global map: " << in_footprints << " segments removed inside robot footprints (footprint_radius_m "
-      << mission.global_map().config().footprint_radius_m << ")\n";
+      << mission.global_map().config().footprint_radius_m << "; " << mission.global_map().footprint_positions()
+      << " robot positions recorded)\n";
   }
   const fusion::MapCounts counts = mission.global_map().counts();
   std::snprintf(line, sizeof line,

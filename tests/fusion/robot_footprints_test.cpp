@@ -2,6 +2,7 @@
 // within the radius of both its ends, across grid cells and signs.
 #include "lmf/fusion/robot_footprints.hpp"
 
+#include <cmath>
 #include <limits>
 #include <stdexcept>
 
@@ -41,6 +42,22 @@ TEST(RobotFootprintsTest, TwoDiscsTogetherDoNotCoverALongerSegment) {
   EXPECT_TRUE(f.covers({0.0, 0.2}, {0.2, 0.2}));
   EXPECT_EQ(f.positions().size(), 2u);
   EXPECT_DOUBLE_EQ(f.positions()[1].x(), 0.6);
+}
+
+TEST(RobotFootprintsTest, AStandingRobotRecordsOnePosition) {
+  RobotFootprints f(0.4);  // min_spacing 0.02 m
+  EXPECT_DOUBLE_EQ(f.min_spacing(), 0.02);
+  EXPECT_TRUE(f.add({1.0, 1.0}));
+  for (int scan = 0; scan < 1000; ++scan) {
+    // Pose jitter of a robot standing still, within 1.5 cm.
+    EXPECT_FALSE(f.add({1.0 + 0.01 * std::sin(scan), 1.0 + 0.01 * std::cos(scan)}));
+  }
+  EXPECT_EQ(f.size(), 1u);
+  EXPECT_TRUE(f.add({1.025, 1.0}));   // 2.5 cm away: a new position
+  EXPECT_TRUE(f.add({0.399, 1.0}));   // another cell, far from both
+  EXPECT_EQ(f.size(), 3u);
+  EXPECT_FALSE(f.add({0.405, 1.0}));  // near the last one, across a cell boundary (0.4)
+  EXPECT_TRUE(f.covers({0.9, 1.3}, {1.1, 1.3}));
 }
 
 TEST(RobotFootprintsTest, RejectsABadRadiusAndNonFinitePositions) {
