@@ -611,9 +611,6 @@ Checked<Sighting> from_message(const lmf::sighting_t& msg, const DecodeLimits& l
   if (auto r = check_nonnegative(msg.utime, "sighting_t.utime")) return *r;
   if (auto r = check_nonnegative(msg.observer_id, "sighting_t.observer_id")) return *r;
   if (auto r = check_nonnegative(msg.observed_id, "sighting_t.observed_id")) return *r;
-  if (msg.observer_id == msg.observed_id) {
-    return reject(RejectReason::kOutOfRange, "sighting_t: robot " + to_string(msg.observer_id) + " sees itself");
-  }
   if (auto r = check_nonnegative(msg.observer_seq, "sighting_t.observer_seq")) return *r;
   if (auto r = check_nonnegative(msg.observed_seq, "sighting_t.observed_seq")) return *r;
   auto x_AB = pose_from(msg.relative, "sighting_t.relative", limits);

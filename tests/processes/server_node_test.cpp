@@ -295,12 +295,13 @@ TEST_F(ServerNodeTest, BadMessagesAreRejectedByReasonAndLeaveTheMapUnchanged) {
   EXPECT_EQ(reject_count(node, "out_of_range") + reject_count(node, "wrong_size"), 2) << "the self-sighting";
   EXPECT_EQ(count_acks(0, 0, Status::kDuplicate), 1);
   // Sightings: the applied one was answered APPLIED, its replay DUPLICATE, the
-  // unknown robot REJECTED (the player stops resending); what did not decode
-  // (garbage, NaN, indefinite, the self-sighting) cannot be answered.
+  // unknown robot and the self-sighting REJECTED (the player stops resending);
+  // what did not decode (garbage, NaN, indefinite) cannot be answered.
   EXPECT_EQ(count_sighting_acks(500'000, 0, 2, lmf::sighting_ack_t::APPLIED), 1);
   EXPECT_EQ(count_sighting_acks(500'000, 0, 2, lmf::sighting_ack_t::DUPLICATE), 1);
   EXPECT_EQ(count_sighting_acks(600'000, 0, 9, lmf::sighting_ack_t::REJECTED), 1);
-  EXPECT_EQ(sighting_acks_.size(), 3u);
+  EXPECT_EQ(count_sighting_acks(600'000, 0, 0, lmf::sighting_ack_t::REJECTED), 1);
+  EXPECT_EQ(sighting_acks_.size(), 4u);
 
   // Only the valid queued map of robot 3 reached the GlobalMap, which did not fuse it.
   const lmf::server::MapView& after = node.view();

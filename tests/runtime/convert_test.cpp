@@ -556,8 +556,13 @@ TEST(ConvertRejects, OutOfRange) {
   scan.robot_id = -1;
   EXPECT_EQ(reason_of(through_bytes<RobotScan>(scan)), RejectReason::kOutOfRange);
   auto sighting = rt::to_message(make_sighting()).value();
-  sighting.observed_id = sighting.observer_id;
+  sighting.observed_seq = -2;
   EXPECT_EQ(reason_of(through_bytes<Sighting>(sighting)), RejectReason::kOutOfRange);
+  // A robot "seeing itself" decodes: the server answers it REJECTED (an ack
+  // needs the decoded ids), so the player stops resending it.
+  sighting = rt::to_message(make_sighting()).value();
+  sighting.observed_id = sighting.observer_id;
+  EXPECT_TRUE(through_bytes<Sighting>(sighting).ok());
   auto frames = rt::to_message(make_frames()).value();
   frames.robot_ids[1] = frames.robot_ids[0];
   EXPECT_EQ(reason_of(through_bytes<CorrectedFrames>(frames)), RejectReason::kOutOfRange);
