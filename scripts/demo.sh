@@ -53,6 +53,8 @@ print(f"lmf-server: {msg['local_maps_received']} local maps received, {msg['acks
       f"{m['robots_joined']} robots joined; P PSD throughout: {'yes' if r['global_covariance_always_ok'] else 'NO'}")
 bodies = sum(f.get("footprint_segments_removed", 0) for f in r.get("fusions", []))
 print(f"segments removed inside robot footprints (robot bodies seen by the lasers): {bodies}")
+crossing = sum(f.get("crossing_segments_removed", 0) for f in r.get("fusions", []))
+print(f"segments removed as the less certain of two that cross: {crossing}")
 status = {}
 for s in r.get("sightings", []): status[s["status"]] = status.get(s["status"], 0) + 1
 print("sightings:", ", ".join(f"{n} {k}" for k, n in sorted(status.items())) or "none",

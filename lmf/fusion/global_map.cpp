@@ -14,6 +14,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "lmf/common/config_check.hpp"
+#include "lmf/fusion/crossing_segments.hpp"
 #include "lmf/spmap/careful_inverse.hpp"
 #include "lmf/spmap/covariance_check.hpp"
 #include "lmf/spmap/segment_ops.hpp"
@@ -236,6 +237,9 @@ void GlobalMapConfig::validate() const {
   require(frame_history_per_robot >= 0, "frame_history_per_robot must be >= 0");
   require(std::isfinite(footprint_radius_m) && footprint_radius_m >= 0.0,
           "footprint_radius_m must be finite and >= 0");
+  require(std::isfinite(crossing_margin_m) && crossing_margin_m >= 0.0, "crossing_margin_m must be finite and >= 0");
+  require(crossing_max_angle_rad > 0.0 && crossing_max_angle_rad <= std::numbers::pi / 2,
+          "crossing_max_angle_rad must be in (0, pi/2]");
 }
 
 bool FusionReport::covariance_ok() const {
@@ -994,6 +998,8 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
   retire_frames(robot_id, removals);
   // (8) Beyond the paper: segments inside a robot's footprint are bodies, not walls.
   if (footprints_) remove_footprint_segments(s, x_WL_fused, removals, rep);
+  // (9) Beyond the paper: two wall faces cannot cross; the less certain one goes.
+  if (config_.crossing_margin_m > 0.0) remove_crossing_segments(unpaired, removals, rep);
   rep.time.frames_s = clock.lap();
 
   state_.remove(removals);
@@ -1045,6 +1051,44 @@ void GlobalMap::remove_footprint_segments(const LocalMapSnapshot& s, const Pose2
     if (footprints_->covers(x_WS.transform_point({-half, 0.0}), x_WS.transform_point({half, 0.0}))) {
       removals.push_back(e.id);
       ++rep.footprint_segments_removed;
+    }
+  }
+}
+
+void GlobalMap::remove_crossing_segments(const std::vector<EntityId>& added, std::vector<EntityId>& removals,
+                                         FusionReport& rep) const {
+  const CrossingRule rule{config_.crossing_margin_m, config_.crossing_max_angle_rad};
+  std::unordered_set<EntityId> leaving(removals.begin(), removals.end());
+  struct Candidate {
+    EntityId id;
+    EndPoints ends;
+    double length_m;
+    double angular_variance;  // of the segment's own perturbation (its frame's excluded)
+  };
+  std::vector<Candidate> staying;
+  std::unordered_map<EntityId, std::size_t> index;
+  for (const Entity& e : state_.entities()) {
+    if (e.kind != EntityKind::kSegment || leaving.count(e.id) != 0) continue;
+    const Pose2 x_WS = state_.root_location(e.id);
+    const double half = 0.5 * e.length_m;
+    index.emplace(e.id, staying.size());
+    staying.push_back({e.id, {x_WS.transform_point({-half, 0.0}), x_WS.transform_point({half, 0.0})}, e.length_m,
+                       state_.covariance(e.offset + 1, e.offset + 1)});
+  }
+  for (const EntityId id : added) {
+    const auto it = index.find(id);
+    if (it == index.end() || leaving.count(id) != 0) continue;
+    const Candidate& a = staying[it->second];
+    for (const Candidate& b : staying) {
+      if (b.id == a.id || leaving.count(b.id) != 0 || !segments_cross(a.ends, b.ends, rule)) continue;
+      // The direction known less well goes (the shorter one on a tie).
+      const bool drop_a = a.angular_variance != b.angular_variance ? a.angular_variance > b.angular_variance
+                                                                   : a.length_m < b.length_m;
+      const EntityId drop = drop_a ? a.id : b.id;
+      removals.push_back(drop);
+      leaving.insert(drop);
+      ++rep.crossing_segments_removed;
+      if (drop_a) break;
     }
   }
 }

@@ -18,7 +18,9 @@
 // segments, fusion of global segments that matched one local segment, a new
 // submap for the unpaired local segments, L_r ← L_r ⊕ x_R, and the environment
 // graph (submap frames as nodes). Beyond the paper, with footprint_radius_m > 0:
-// segments lying inside one robot footprint (robot_footprints.hpp) leave the map.
+// segments lying inside one robot footprint (robot_footprints.hpp) leave the map;
+// with crossing_margin_m > 0 (the default), of two segments that cross
+// (crossing_segments.hpp), the one whose direction is less known does.
 //
 // Robots join with a known frame (join_robot) or through a sighting by a joined
 // robot (add_sighting). Local maps of robots that have not joined, or that
@@ -37,6 +39,7 @@
 #include <cstdint>
 #include <deque>
 #include <map>
+#include <numbers>
 #include <optional>
 #include <set>
 #include <stdexcept>
@@ -147,6 +150,14 @@ struct GlobalMapConfig {
   // robot's size is not known here); config/sim.json: 0.35 m for the
   // simulator's 0.25 m discs.
   double footprint_radius_m = 0.0;
+  // Crossing segments (beyond the paper; crossing_segments.hpp): when a
+  // segment a fusion adds crosses another one (the crossing point farther than
+  // crossing_margin_m from every end of both, the directions within
+  // crossing_max_angle_rad), the one whose direction the map knows less well
+  // (larger angular variance of its own perturbation) leaves the map.
+  // crossing_margin_m = 0 turns it off.
+  double crossing_margin_m = 0.1;
+  double crossing_max_angle_rad = std::numbers::pi / 3;
 
   // Throws std::invalid_argument naming the first bad field.
   void validate() const;
@@ -205,6 +216,7 @@ struct FusionReport {
   int global_fusions_rejected = 0;  // pairs that matched one local segment but failed their own test
   int new_segments = 0;
   int footprint_segments_removed = 0;  // segments inside a robot footprint (GlobalMapConfig::footprint_radius_m)
+  int crossing_segments_removed = 0;   // the less certain of two crossing segments (GlobalMapConfig::crossing_margin_m)
   std::optional<EntityId> new_submap;
   Pose2 x_WL_next;  // the robot's next local frame
 
@@ -361,6 +373,11 @@ class GlobalMap {
   // appends every segment inside a footprint to `removals`.
   void remove_footprint_segments(const LocalMapSnapshot& snapshot, const Pose2& x_WL,
                                  std::vector<EntityId>& removals, FusionReport& report);
+  // Appends to `removals`, for each segment in `added` that crosses another
+  // segment staying in the map, the one of the two with the larger angular
+  // variance (crossing_segments.hpp).
+  void remove_crossing_segments(const std::vector<EntityId>& added, std::vector<EntityId>& removals,
+                                FusionReport& report) const;
   bool is_submap(EntityId frame) const;
   // What is wrong with a pose from outside (" is not finite", ...), if anything.
   std::optional<std::pair<InvalidInput::Reason, std::string>> pose_problem(const Pose2& pose) const;

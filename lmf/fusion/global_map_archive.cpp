@@ -280,7 +280,7 @@ class GlobalMapArchive {
 //               careful_absolute_floor, snapshot_tolerance, max_coordinate_m,
 //               local_map_covariance_scale),
 //               u8 first_robot_defines_world, u8 health, i32 frame_history_per_robot,
-//               f64 footprint_radius_m
+//               f64 footprint_radius_m, f64 crossing_margin_m, f64 crossing_max_angle_rad
 //   state       i64 next_id, i64 n, i64 capacity, u64 count + entities
 //               (i64 id, u8 kind, pose, f64 length, u8 has_parent, i64 parent,
 //               i64 offset), then P's lower triangle by columns (column j:
@@ -305,6 +305,8 @@ void GlobalMapArchive::write_config(ArchiveWriter& w, const GlobalMapConfig& c) 
   w.u8(static_cast<std::uint8_t>(c.health));
   w.i32(c.frame_history_per_robot);
   w.f64(c.footprint_radius_m);
+  w.f64(c.crossing_margin_m);
+  w.f64(c.crossing_max_angle_rad);
 }
 
 GlobalMapConfig GlobalMapArchive::read_config(ArchiveReader& r) {
@@ -320,6 +322,8 @@ GlobalMapConfig GlobalMapArchive::read_config(ArchiveReader& r) {
   c.health = static_cast<HealthCheck>(health);
   c.frame_history_per_robot = r.i32();
   c.footprint_radius_m = r.f64();
+  c.crossing_margin_m = r.f64();
+  c.crossing_max_angle_rad = r.f64();
   try {
     c.validate();
   } catch (const std::invalid_argument& e) {
@@ -606,7 +610,8 @@ void write_fusion_report(ArchiveWriter& w, const FusionReport& f) {
   w.f64(f.update_distance2);
   w.i64(f.update_dimension);
   for (const int v : {f.segments_extended, f.local_segments_removed, f.global_segments_fused,
-                      f.global_fusions_rejected, f.new_segments, f.footprint_segments_removed}) {
+                      f.global_fusions_rejected, f.new_segments, f.footprint_segments_removed,
+                      f.crossing_segments_removed}) {
     w.i32(v);
   }
   w.boolean(f.new_submap.has_value());
@@ -641,7 +646,7 @@ FusionReport read_fusion_report(ArchiveReader& r) {
   f.update_dimension = r.i64();
   for (int* v : {&f.segments_extended, &f.local_segments_removed, &f.global_segments_fused,
                  &f.global_fusions_rejected, &f.new_segments,
-                 &f.footprint_segments_removed}) {
+                 &f.footprint_segments_removed, &f.crossing_segments_removed}) {
     *v = r.i32();
   }
   const bool has_submap = r.boolean();

@@ -45,8 +45,9 @@
 namespace lmf::fusion {
 
 // 2: GlobalMapConfig::local_map_covariance_scale. 3: robot footprints
-// (GlobalMapConfig::footprint_radius_m and the recorded positions).
-inline constexpr std::uint32_t kGlobalMapArchiveVersion = 3;
+// (GlobalMapConfig::footprint_radius_m and the recorded positions). 4: crossing
+// segments (GlobalMapConfig::crossing_*, FusionReport::crossing_segments_removed).
+inline constexpr std::uint32_t kGlobalMapArchiveVersion = 4;
 
 // A bad, short, corrupt or unknown-version archive (what and where).
 class ArchiveError : public std::runtime_error {

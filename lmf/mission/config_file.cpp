@@ -24,6 +24,8 @@ void read_config(io::JsonReader& r, fusion::GlobalMapConfig& c) {
                  {"full_eigen", fusion::HealthCheck::kFullEigen}});
   r.read("frame_history_per_robot", c.frame_history_per_robot);
   r.read("footprint_radius_m", c.footprint_radius_m);
+  r.read("crossing_margin_m", c.crossing_margin_m);
+  r.read("crossing_max_angle_rad", c.crossing_max_angle_rad);
 }
 
 void read_config(io::JsonReader& r, SightingNoise& c) {

@@ -88,6 +88,7 @@ json fusion_report_json(const fusion::FusionReport& r) {
             {"global_segments_fused", r.global_segments_fused},
             {"new_segments", r.new_segments},
             {"footprint_segments_removed", r.footprint_segments_removed},
+            {"crossing_segments_removed", r.crossing_segments_removed},
             {"segments_after", r.size_after.segments},
             {"submaps_after", r.size_after.submaps},
             {"graph_edges_after", r.size_after.graph_edges},
@@ -272,6 +273,11 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
     s << "global map: " << in_footprints << " segments removed inside robot footprints (footprint_radius_m "
       << mission.global_map().config().footprint_radius_m << "; " << mission.global_map().footprint_positions()
       << " robot positions recorded)\n";
+  }
+  if (mission.global_map().config().crossing_margin_m > 0.0) {
+    int crossing = 0;
+    for (const fusion::FusionReport& f : result.fusions) crossing += f.crossing_segments_removed;
+    s << "global map: " << crossing << " segments removed as the less certain of two that cross\n";
   }
   const fusion::MapCounts counts = mission.global_map().counts();
   std::snprintf(line, sizeof line,

@@ -131,6 +131,8 @@ TEST(GlobalMapArchiveTest, RestoredMapContinuesBitIdentically) {
   config.health = HealthCheck::kFullLdlt;
   config.frame_history_per_robot = 3;
   config.footprint_radius_m = 0.35;  // the scan poses' footprints are archived too
+  config.crossing_margin_m = 0.15;
+  config.crossing_max_angle_rad = 0.9;
   GlobalMap original(config);
   std::mt19937 rng(7);
   first_half(original, rng);
@@ -221,10 +223,10 @@ TEST(GlobalMapArchiveTest, BrokenInvariantsAreRejectedEvenWithAGoodChecksum) {
   std::string payload;
   ArchiveWriter w(payload);
   write_global_map(w, map);
-  // The first entity's offset sits after the config (11 f64 + 2 u8 + i32 + f64
-  // = 102 bytes), next_id, n, capacity, count (32) and its id, kind, pose,
+  // The first entity's offset sits after the config (11 f64 + 2 u8 + i32 + 3 f64
+  // = 118 bytes), next_id, n, capacity, count (32) and its id, kind, pose,
   // length, parent flag and parent (58 - 8 bytes): set it to 1.
-  const std::size_t offset_at = 102 + 32 + 50;
+  const std::size_t offset_at = 118 + 32 + 50;
   std::int64_t offset = 0;
   std::memcpy(&offset, payload.data() + offset_at, sizeof offset);
   ASSERT_EQ(offset, 0);
@@ -276,6 +278,9 @@ TEST(GlobalMapArchiveTest, SameConfigComparesEveryField) {
   EXPECT_FALSE(same_config(a, b));
   b = a;
   b.frame_history_per_robot = 1;
+  EXPECT_FALSE(same_config(a, b));
+  b = a;
+  b.crossing_max_angle_rad = 1.0;
   EXPECT_FALSE(same_config(a, b));
 }
 

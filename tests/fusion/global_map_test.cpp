@@ -660,6 +660,91 @@ TEST(GlobalMapTest, FootprintsAreOffByDefaultAndTheRadiusMatters) {
   EXPECT_THROW(GlobalMap{bad}, std::invalid_argument);
 }
 
+// Crossing segments (GlobalMapConfig::crossing_margin_m): a 0.6 m "wall" at 30°
+// across the room's bottom wall (y = -3) is a bad fit; of the two, the segment
+// whose direction the map knows less well leaves the map.
+struct CrossingScene {
+  std::vector<Wall> room = synthetic::room(0.0, 0.0, 8.0, 6.0);  // bottom wall first
+  Wall ghost{Pose2(1.0, -3.0, M_PI / 6), 0.6};
+  Wall across{Pose2(-1.0, -3.0, M_PI / 2), 0.6};  // perpendicular, through the wall
+  Pose2 x_LR{1.0, 0.0, 0.1};                      // robot 0's path: L(k+1) = L(k) ⊕ x_LR
+
+  LocalMapSnapshot map(std::int64_t seq, const std::vector<Wall>& walls, double angle_rad = 0.005) const {
+    synthetic::Noise noise;
+    noise.angle_rad = angle_rad;
+    Pose2 x_WL;
+    for (std::int64_t k = 0; k < seq; ++k) x_WL = compose(x_WL, x_LR);
+    return synthetic::make_snapshot(0, seq, x_WL, x_LR, walls, noise);
+  }
+};
+
+TEST(GlobalMapTest, ANewSegmentCrossingAKnownWallLeavesTheMap) {
+  const CrossingScene scene;
+  GlobalMap map(checked_config());
+  ASSERT_EQ(map.fuse(scene.map(0, scene.room)).size(), 1u);
+  std::vector<Wall> seen = scene.room;
+  seen.push_back(scene.ghost);
+  const std::vector<FusionReport> r = map.fuse(scene.map(1, seen));
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].pairings_accepted, 4);  // the room, seen twice: the walls' directions are known better
+  EXPECT_EQ(r[0].new_segments, 1);
+  EXPECT_EQ(r[0].crossing_segments_removed, 1);
+  EXPECT_EQ(map.counts().segments, 4);
+  EXPECT_EQ(find_segment(map.segments(), scene.ghost), nullptr);
+  for (const Wall& w : scene.room) EXPECT_NE(find_segment(map.segments(), w), nullptr);
+  EXPECT_TRUE(r[0].covariance_ok());
+  EXPECT_GE(min_eigenvalue(map), -1e-12);
+}
+
+TEST(GlobalMapTest, AKnownSegmentCrossedByABetterNewOneLeavesTheMap) {
+  const CrossingScene scene;
+  GlobalMap map(checked_config());
+  // The bad fit arrives first, with an uncertain direction (0.02 rad); the
+  // bottom wall comes next, seen well (0.002 rad): the old segment goes.
+  ASSERT_EQ(map.fuse(scene.map(0, subset(scene.room, {1, 2, 3}), 0.002)).size(), 1u);
+  ASSERT_EQ(map.fuse(scene.map(1, {scene.ghost}, 0.02)).size(), 1u);
+  ASSERT_EQ(map.counts().segments, 4);
+  const std::vector<FusionReport> r = map.fuse(scene.map(2, {scene.room[0]}, 0.002));
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].pairings_accepted, 0);
+  EXPECT_EQ(r[0].crossing_segments_removed, 1);
+  EXPECT_EQ(map.counts().segments, 4);
+  EXPECT_EQ(find_segment(map.segments(), scene.ghost), nullptr);
+  EXPECT_NE(find_segment(map.segments(), scene.room[0]), nullptr);
+  EXPECT_GE(min_eigenvalue(map), -1e-12);
+}
+
+TEST(GlobalMapTest, CrossingsBeyondTheAngleOrWithTheRuleOffStay) {
+  const CrossingScene scene;
+  std::vector<Wall> seen = scene.room;
+  seen.push_back(scene.across);  // 90°: beyond the default 60°
+  {
+    GlobalMap map(checked_config());
+    map.fuse(scene.map(0, scene.room));
+    const std::vector<FusionReport> r = map.fuse(scene.map(1, seen));
+    ASSERT_EQ(r.size(), 1u);
+    EXPECT_EQ(r[0].crossing_segments_removed, 0);
+    EXPECT_NE(find_segment(map.segments(), scene.across), nullptr);
+  }
+  seen.back() = scene.ghost;
+  GlobalMapConfig off = checked_config();
+  off.crossing_margin_m = 0.0;
+  GlobalMap map(off);
+  map.fuse(scene.map(0, scene.room));
+  const std::vector<FusionReport> r = map.fuse(scene.map(1, seen));
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].crossing_segments_removed, 0);
+  EXPECT_EQ(map.counts().segments, 5);
+  for (const double bad_angle : {0.0, 1.6, std::numeric_limits<double>::quiet_NaN()}) {
+    GlobalMapConfig bad;
+    bad.crossing_max_angle_rad = bad_angle;
+    EXPECT_THROW(GlobalMap{bad}, std::invalid_argument) << bad_angle;
+  }
+  GlobalMapConfig bad;
+  bad.crossing_margin_m = -0.1;
+  EXPECT_THROW(GlobalMap{bad}, std::invalid_argument);
+}
+
 TEST(GlobalMapTest, ASnapshotWithANonFiniteScanPoseIsRejected) {
   const FootprintScene scene;
   GlobalMap map(footprint_config(0.35));
