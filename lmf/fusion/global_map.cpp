@@ -12,6 +12,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 
 #include "lmf/common/config_check.hpp"
 #include "lmf/fusion/crossing_segments.hpp"
@@ -1062,28 +1063,47 @@ void GlobalMap::remove_crossing_segments(const std::vector<EntityId>& added, std
   struct Candidate {
     EntityId id;
     EndPoints ends;
+    Eigen::AlignedBox2d box;
     double length_m;
-    double angular_variance;  // of the segment's own perturbation (its frame's excluded)
+    Eigen::Index angle_row;  // row of the angular error of its own perturbation (its frame's excluded)
   };
+  // Every segment staying, in W (each parent frame composed once: a fusion
+  // visits every segment here, so this must stay a small part of the O(n²) update).
+  std::unordered_map<EntityId, Pose2> frame_in_W;
   std::vector<Candidate> staying;
-  std::unordered_map<EntityId, std::size_t> index;
+  staying.reserve(state_.entities().size());
   for (const Entity& e : state_.entities()) {
     if (e.kind != EntityKind::kSegment || leaving.count(e.id) != 0) continue;
-    const Pose2 x_WS = state_.root_location(e.id);
-    const double half = 0.5 * e.length_m;
-    index.emplace(e.id, staying.size());
-    staying.push_back({e.id, {x_WS.transform_point({-half, 0.0}), x_WS.transform_point({half, 0.0})}, e.length_m,
-                       state_.covariance(e.offset + 1, e.offset + 1)});
+    Pose2 x_WS = e.location;
+    if (e.parent) {
+      auto [frame, inserted] = frame_in_W.try_emplace(*e.parent);
+      if (inserted) frame->second = state_.root_location(*e.parent);
+      x_WS = compose(frame->second, e.location);
+    }
+    const Eigen::Vector2d half = 0.5 * e.length_m * Eigen::Vector2d(std::cos(x_WS.phi), std::sin(x_WS.phi));
+    const Eigen::Vector2d mid(x_WS.x, x_WS.y);
+    const EndPoints ends{mid - half, mid + half};
+    Eigen::AlignedBox2d box(ends.start.cwiseMin(ends.end), ends.start.cwiseMax(ends.end));
+    staying.push_back({e.id, ends, box, e.length_m, e.offset + 1});
   }
-  for (const EntityId id : added) {
-    const auto it = index.find(id);
-    if (it == index.end() || leaving.count(id) != 0) continue;
-    const Candidate& a = staying[it->second];
+  std::vector<std::size_t> new_ones;  // indices into staying
+  const std::unordered_set<EntityId> added_set(added.begin(), added.end());
+  for (std::size_t i = 0; i < staying.size(); ++i) {
+    if (added_set.count(staying[i].id) != 0) new_ones.push_back(i);
+  }
+  for (const std::size_t i : new_ones) {
+    const Candidate& a = staying[i];
+    if (leaving.count(a.id) != 0) continue;
     for (const Candidate& b : staying) {
-      if (b.id == a.id || leaving.count(b.id) != 0 || !segments_cross(a.ends, b.ends, rule)) continue;
+      // Boxes that do not touch hold no crossing: most pairs stop here.
+      if (!a.box.intersects(b.box) || b.id == a.id || leaving.count(b.id) != 0 ||
+          !segments_cross(a.ends, b.ends, rule)) {
+        continue;
+      }
       // The direction known less well goes (the shorter one on a tie).
-      const bool drop_a = a.angular_variance != b.angular_variance ? a.angular_variance > b.angular_variance
-                                                                   : a.length_m < b.length_m;
+      const double var_a = state_.covariance(a.angle_row, a.angle_row);
+      const double var_b = state_.covariance(b.angle_row, b.angle_row);
+      const bool drop_a = var_a != var_b ? var_a > var_b : a.length_m < b.length_m;
       const EntityId drop = drop_a ? a.id : b.id;
       removals.push_back(drop);
       leaving.insert(drop);
