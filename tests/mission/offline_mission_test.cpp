@@ -86,6 +86,36 @@ TEST(OfflineMission, RobotFootprintsRemoveBodiesAndNoWall) {
   EXPECT_NEAR(sa->ate.position_rmse_m, sb->ate.position_rmse_m, 1e-3);
 }
 
+// Crossing segments on the simulator: what they remove is, nearly all, segments
+// that match no wall (bad fits of noisy walls), and the trajectory does not suffer.
+TEST(OfflineMission, CrossingSegmentsRemoveBadFitsNotWalls) {
+  const MissionInputs inputs = load_sim_folder(simulated_folder(), SightingNoise{});
+  MissionConfig with = load_mission_config(std::string(LMF_CONFIG_DIR) + "/sim.json");
+  ASSERT_GT(with.global_map.crossing_margin_m, 0.0);
+  MissionConfig without = with;
+  without.global_map.crossing_margin_m = 0.0;
+  OfflineMission a(with, inputs);
+  OfflineMission b(without, inputs);
+  const MissionResult ra = a.run();
+  const MissionResult rb = b.run();
+  int removed = 0;
+  for (const fusion::FusionReport& f : ra.fusions) removed += f.crossing_segments_removed;
+  for (const fusion::FusionReport& f : rb.fusions) EXPECT_EQ(f.crossing_segments_removed, 0);
+  const auto sa = score_mission(ra, a.inputs(), a.global_map());
+  const auto sb = score_mission(rb, b.inputs(), b.global_map());
+  ASSERT_TRUE(sa && sa->map && sb && sb->map);
+  const std::size_t matched_a = sa->map->segments - sa->map->unmatched_segments;
+  const std::size_t matched_b = sb->map->segments - sb->map->unmatched_segments;
+  // Seed 3, 2 robots: 12 removed; 11 -> 3 match no wall; 118 -> 114 match one
+  // (the scorer accepts fits up to 0.3 rad off, so some bad fits count as
+  // matched: the RMS goes down, not up); the same ATE.
+  EXPECT_GE(removed, 8);
+  EXPECT_LE(sa->map->unmatched_segments + 6, sb->map->unmatched_segments);
+  EXPECT_GE(matched_a + 5, matched_b);
+  EXPECT_LE(sa->map->rms_m, sb->map->rms_m + 1e-4);
+  EXPECT_NEAR(sa->ate.position_rmse_m, sb->ate.position_rmse_m, 2e-3);
+}
+
 TEST(OfflineMission, RepeatedRunsAreIdentical) {
   const MissionInputs inputs = load_sim_folder(simulated_folder(), SightingNoise{});
   const MissionResult a = run(inputs);
