@@ -50,7 +50,7 @@ int main(int argc, char** argv) {
        "both: resend a sighting lmf-server has not answered within this time")
       ("max-attempts", po::value(&max_attempts)->default_value(max_attempts),
        "sends of one sighting before giving up on its answer from lmf-server, and (lockstep) of one scan before "
-       "going on without its ack")
+       "going on without its ack; 0: no limit (resend until answered, e.g. while lmf-server may be restarted)")
       ("seed", po::value(&seed), "seed of the sighting noise (overrides the config's sighting_noise.seed)")
       ("config", po::value(&config_file), "mission JSON config; its sighting_noise section is used")
       ("start-delay-ms", po::value(&start_delay_ms)->default_value(start_delay_ms),

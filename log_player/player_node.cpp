@@ -22,7 +22,7 @@ void PlayerOptions::validate() const {
     throw std::invalid_argument("rate must be > 0, got " + to_string(rate));
   }
   if (ack_timeout.count() <= 0) throw std::invalid_argument("ack timeout must be > 0 ms");
-  if (max_attempts < 1) throw std::invalid_argument("max attempts must be >= 1");
+  if (max_attempts < 0) throw std::invalid_argument("max attempts must be >= 0 (0: no limit)");
   if (start_delay.count() < 0) throw std::invalid_argument("start delay must be >= 0 ms");
   if (mission_end_interval.count() <= 0) throw std::invalid_argument("mission end interval must be > 0 ms");
   if (mission_end_repeats < 1) throw std::invalid_argument("mission end repeats must be >= 1");
@@ -179,7 +179,7 @@ void PlayerNode::lockstep_timeout(std::size_t event_index) {
   ack_timer_.reset();
   if (event_index != next_event_ || replay_done_) return;
   const ScanEvent& event = events_[event_index];
-  if (attempts_ < options_.max_attempts) {
+  if (options_.may_send_again(attempts_)) {
     ++attempts_;
     ++counters_.scan_resends;
     send_scan(event);  // same seq: the agent re-acks it if it already processed it
@@ -317,7 +317,7 @@ void PlayerNode::resend_sightings() {
   sighting_timer_.reset();
   for (auto it = pending_sightings_.begin(); it != pending_sightings_.end();) {
     PendingSighting& p = it->second;
-    if (p.attempts < options_.max_attempts) {
+    if (options_.may_send_again(p.attempts)) {
       ++p.attempts;
       ++counters_.sighting_resends;
       bus_.publish(options_.channels.sighting(), p.message);

@@ -6,7 +6,8 @@
 //   LMF_SIGHTING    out  robot B seen by robot A, with each robot's local map
 //                        seq, x_L? and covariance taken from the ack of its last
 //                        scan at or before the sighting's time; resent until
-//                        the server answers, at most max_attempts sends: every
+//                        the server answers, at most max_attempts sends (0: no
+//                        limit, for a server that may be down longer): every
 //                        ack_timeout, all unanswered ones in time order (a
 //                        server started late gets them in the order lmf-offline
 //                        applies them)
@@ -16,7 +17,7 @@
 // Two pacings:
 //  * lockstep: one scan at a time in global time order (ties: lower robot id),
 //    the next only after the agent acked it (resent after ack_timeout, given up
-//    after max_attempts sends); sightings strictly before the next scan's time
+//    after max_attempts sends, never with 0); sightings strictly before the next scan's time
 //    are published first. Each local map is then published before the scans
 //    and sightings that follow it, so a FIFO server fuses exactly as lmf-offline.
 //  * rate R: each scan at (its time - first scan time) / R after the start,
@@ -58,7 +59,7 @@ struct PlayerOptions {
   bool lockstep = false;
   double rate = 1.0;                                // --rate pacing: log time / rate (> 0)
   std::chrono::milliseconds ack_timeout{2000};      // > 0
-  int max_attempts = 10;  // sends of one sighting, or (lockstep) of one scan, before giving up (>= 1)
+  int max_attempts = 10;  // sends of one sighting, or (lockstep) of one scan, before giving up (0: no limit)
   std::chrono::milliseconds start_delay{0};         // before the first scan (subscribers starting)
   std::chrono::milliseconds mission_end_interval{200};
   int mission_end_repeats = 5;                      // >= 1
@@ -67,6 +68,8 @@ struct PlayerOptions {
   std::function<void()> on_finished;                // after the last mission_end_t
   // Throws std::invalid_argument naming the bad field.
   void validate() const;
+  // Whether something already sent `attempts` times may be sent once more.
+  bool may_send_again(int attempts) const { return max_attempts == 0 || attempts < max_attempts; }
 };
 
 struct PlayerCounters {

@@ -630,8 +630,12 @@ TEST(LocalMapSeeThrough, AnObjectThatLeavesIsRemovedAndTheWallsStay) {
       const ScanReport r = lm.process_scan(scans[k]);
       removed += r.segments_seen_through;
       EXPECT_EQ(r.map_segments, static_cast<int>(lm.num_segments()));
-      if (k == 5) EXPECT_EQ(object_segments(lm), 1) << "the object is mapped while it is there";
-      if (k < 6) EXPECT_EQ(r.segments_seen_through, 0) << k;
+      if (k == 5) {
+        EXPECT_EQ(object_segments(lm), 1) << "the object is mapped while it is there";
+      }
+      if (k < 6) {
+        EXPECT_EQ(r.segments_seen_through, 0) << k;
+      }
       EXPECT_TRUE(lm.check_covariance().ok()) << k;
     }
     EXPECT_EQ(object_segments(lm), enabled ? 0 : 1) << "see_through.enabled = " << enabled;

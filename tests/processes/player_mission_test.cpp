@@ -266,6 +266,30 @@ TEST_F(PlayerMission, GivesUpOnAnUnansweredSightingAndStillEnds) {
   EXPECT_FALSE(s->server->map().is_joined(1));
 }
 
+// With max_attempts 0 a sighting is resent until the server answers, however
+// long that takes (a server restarted after more than max_attempts x ack_timeout).
+TEST_F(PlayerMission, WithoutALimitASightingIsResentUntilAnswered) {
+  PlayerOptions options = lockstep_options();
+  options.ack_timeout = 5ms;
+  options.max_attempts = 0;
+  auto s = make_system(options);
+  const int ignored = 60;  // far beyond the default 10 sends
+  s->server->ignore_first_sighting_transmissions(ignored);
+  s->player->start();
+  ASSERT_TRUE(run_until(s->loop, [&] { return s->all_done(); }, 60s)) << s->player->summary();
+  const auto& pc = s->player->counters();
+  ASSERT_GT(pc.sightings_published, 0);
+  EXPECT_EQ(pc.sightings_unanswered, 0);
+  EXPECT_EQ(pc.sightings_acked, pc.sightings_published);
+  EXPECT_GE(pc.sighting_resends, ignored * pc.sightings_published);
+  for (const auto& [key, n] : s->server->sightings_received()) {
+    EXPECT_GE(n, ignored + 1) << "sighting at " << std::get<0>(key);
+  }
+  EXPECT_EQ(s->server->sightings(), pc.sightings_published) << "each applied once";
+  EXPECT_TRUE(s->server->map().is_joined(1));
+  expect_every_map_fused_once(*s);
+}
+
 TEST_F(PlayerMission, DroppedLocalMapTransmissionsAreStillFusedExactlyOnce) {
   auto s = make_system(lockstep_options(), 0.1);
   s->player->start();
@@ -354,6 +378,15 @@ TEST(PlayerNodeOptions, AreValidated) {
   PlayerOptions bad;
   bad.rate = 0.0;
   EXPECT_THROW(PlayerNode(bus, loop, inputs, bad), std::invalid_argument);
+  bad = PlayerOptions();
+  bad.max_attempts = -1;
+  EXPECT_THROW(PlayerNode(bus, loop, inputs, bad), std::invalid_argument) << "max_attempts < 0";
+  PlayerOptions limits;
+  limits.max_attempts = 0;
+  EXPECT_TRUE(limits.may_send_again(1000000)) << "0: no limit";
+  limits.max_attempts = 3;
+  EXPECT_TRUE(limits.may_send_again(2));
+  EXPECT_FALSE(limits.may_send_again(3));
   bad = PlayerOptions();
   bad.progress = PlayerOptions::Progress::kLine;
   EXPECT_THROW(PlayerNode(bus, loop, inputs, bad), std::invalid_argument) << "progress without a stream";
