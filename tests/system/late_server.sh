@@ -2,7 +2,8 @@
 # lmf-server started after the replay (the real binaries, 2 robots, lockstep,
 # inside a private network namespace): the agents resend their local maps and
 # the player its sightings until the server answers, so robot 1, which joins
-# only through a sighting, is in the map and every scan has a pose.
+# only through a sighting, is in the map and every scan has a pose. The player
+# runs with --max-attempts 0 (no limit), as for a server of unknown start.
 #   late_server.sh BUILD_DIR SOURCE_DIR
 set -euo pipefail
 build=$1 src=$2
@@ -38,7 +39,7 @@ for r in 0 1; do
     >"$work/logs/agent$r.log" 2>&1 & pids+=($!)
 done
 "$build/log_player/lmf-player" --config "$config" --sim "$work/sim" --lockstep --start-delay-ms 500 \
-  --ack-timeout-ms 500 --max-attempts 120 >"$work/logs/player.log" 2>&1 & player=$!; pids+=($player)
+  --ack-timeout-ms 500 --max-attempts 0 >"$work/logs/player.log" 2>&1 & player=$!; pids+=($player)
 # The server starts once the player has sent every scan (and so every sighting).
 deadline=$((SECONDS + 120))
 until grep -q '(100.0 %)' "$work/logs/player.log" 2>/dev/null; do
