@@ -180,6 +180,11 @@ void PlayerNode::lockstep_timeout(std::size_t event_index) {
   if (event_index != next_event_ || replay_done_) return;
   const ScanEvent& event = events_[event_index];
   if (options_.may_send_again(attempts_)) {
+    if (options_.max_attempts == 0 && attempts_ % 10 == 0) {
+      std::cerr << "lmf-player: no ack for robot " << inputs_.robots[event.robot].robot_id << " scan " << event.scan
+                << " after " << attempts_ << " sends; resending every " << options_.ack_timeout.count()
+                << " ms (is its lmf-agent running?)\n";
+    }
     ++attempts_;
     ++counters_.scan_resends;
     send_scan(event);  // same seq: the agent re-acks it if it already processed it
@@ -333,6 +338,14 @@ void PlayerNode::resend_sightings() {
     it = pending_sightings_.erase(it);
   }
   if (!pending_sightings_.empty()) {
+    // Without a limit nothing is ever given up: say so now and then, so a
+    // player waiting for a server that is not there does not wait silently.
+    int oldest = 0;
+    for (const auto& [key, p] : pending_sightings_) oldest = std::max(oldest, p.attempts);
+    if (options_.max_attempts == 0 && oldest % 10 == 0) {
+      std::cerr << "lmf-player: " << pending_sightings_.size() << " sighting(s) unanswered, the oldest after " << oldest
+                << " sends; resending every " << options_.ack_timeout.count() << " ms (is lmf-server running?)\n";
+    }
     sighting_timer_ = loop_.after(options_.ack_timeout, [this] { resend_sightings(); });
   } else if (ending_) {
     send_mission_end();
