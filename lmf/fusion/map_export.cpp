@@ -156,6 +156,29 @@ io::SvgDocument map_to_svg(const GlobalMap& map, const std::vector<MapTrajectory
     doc.end_group();
   }
 
+  // The environment graph under the walls and faint: hundreds of edges of a
+  // mission otherwise hide the map they describe.
+  if (options.graph && !submaps.empty()) {
+    std::map<EntityId, Eigen::Vector2d> node;
+    for (const SubmapView& f : submaps) node[f.frame] = Eigen::Vector2d(f.x_WF.x, f.x_WF.y);
+    doc.begin_group("environment graph", "graph");
+    for (const GraphEdge& e : map.graph_edges()) {
+      io::SvgStyle style;
+      style.stroke = e.kind == GraphEdge::Kind::kConsecutive ? "#2ca02c" : "#d62728";
+      style.stroke_width_px = 1.0;
+      style.stroke_opacity = e.kind == GraphEdge::Kind::kConsecutive ? 0.6 : 0.3;
+      style.dash_px = e.kind == GraphEdge::Kind::kConsecutive ? "" : "4 3";
+      style.css_class = std::string("edge-") + kind_name(e.kind);
+      doc.add_line(node.at(e.a), node.at(e.b), style);
+    }
+    io::SvgStyle dot;
+    dot.stroke = "none";
+    dot.fill = "#d62728";
+    dot.fill_opacity = 0.6;
+    for (const auto& [id, p] : node) doc.add_dot(p, 3.0, dot);
+    doc.end_group();
+  }
+
   doc.begin_group("segments", "segments");
   {
     io::SvgStyle style;
@@ -165,25 +188,6 @@ io::SvgDocument map_to_svg(const GlobalMap& map, const std::vector<MapTrajectory
     for (const SegmentView& s : segments) doc.add_line(s.start_W, s.end_W, style);
   }
   doc.end_group();
-
-  if (options.graph && !submaps.empty()) {
-    std::map<EntityId, Eigen::Vector2d> node;
-    for (const SubmapView& f : submaps) node[f.frame] = Eigen::Vector2d(f.x_WF.x, f.x_WF.y);
-    doc.begin_group("environment graph", "graph");
-    for (const GraphEdge& e : map.graph_edges()) {
-      io::SvgStyle style;
-      style.stroke = e.kind == GraphEdge::Kind::kConsecutive ? "#2ca02c" : "#d62728";
-      style.stroke_width_px = 1.0;
-      style.dash_px = e.kind == GraphEdge::Kind::kConsecutive ? "" : "4 3";
-      style.css_class = std::string("edge-") + kind_name(e.kind);
-      doc.add_line(node.at(e.a), node.at(e.b), style);
-    }
-    io::SvgStyle dot;
-    dot.stroke = "none";
-    dot.fill = "#d62728";
-    for (const auto& [id, p] : node) doc.add_dot(p, 3.0, dot);
-    doc.end_group();
-  }
 
   if (options.frames) {
     doc.begin_group("submap frames", "submaps");
