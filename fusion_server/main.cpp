@@ -1,7 +1,9 @@
 // lmf-server: the fusion server process (DESIGN §1, §5, §7). Parses flags,
 // loads the global_map section of a mission config, runs ServerNode on the
 // event loop; SIGUSR1 writes the outputs now, SIGINT/SIGTERM finish the
-// fusion in progress, write them and exit 0.
+// fusion in progress, write them and exit 0. With --replay CAPTURE it fuses an
+// lcm-logger capture's local maps and sightings on a private memq:// bus
+// instead (fusion_server/capture_replay.hpp), writes the outputs and exits.
 #include <csignal>
 #include <iostream>
 #include <optional>
@@ -11,6 +13,7 @@
 #include <boost/asio/signal_set.hpp>
 #include <boost/program_options.hpp>
 
+#include "fusion_server/capture_replay.hpp"
 #include "fusion_server/server_node.hpp"
 #include "lmf/mission/config_file.hpp"
 #include "runtime/bus.hpp"
@@ -18,6 +21,34 @@
 #include "runtime/options.hpp"
 
 namespace po = boost::program_options;
+
+namespace {
+
+int replay_capture_and_exit(const char* program, const std::string& capture, const lmf::runtime::CommonOptions& common,
+                            const lmf::server::ServerOptions& options) {
+  lmf::runtime::Bus bus("memq://", lmf::runtime::auth_config_or_exit(common, "server", program));
+  lmf::runtime::EventLoop loop(bus, lmf::runtime::EventLoopOptions{false});
+  const lmf::runtime::Channels channels(common.channel_prefix);
+  try {
+    lmf::server::ServerNode node(bus, loop, channels, options);
+    const lmf::server::CaptureReplayStats stats = lmf::server::replay_capture(capture, bus, loop, node, channels);
+    const bool written = node.shutdown(true);
+    std::cerr << program << ": replayed " << capture << ": " << stats.events << " events, " << stats.local_maps
+              << " local maps and " << stats.sightings << " sightings fed; " << node.view().fusion_count
+              << " fusions, " << node.stats().acks_duplicate << " duplicates; outputs "
+              << (written ? "written to " : "NOT written to ") << options.out_dir << '\n';
+    if (stats.unread_bytes > 0) {
+      std::cerr << program << ": the last " << stats.unread_bytes
+                << " bytes of the capture are not a complete event (cut short?) and were not read\n";
+    }
+    for (const auto& [reason, count] : node.reject_counts()) std::cerr << "  rejected (" << reason << "): " << count << '\n';
+    return written ? 0 : 1;
+  } catch (const std::exception& e) {
+    lmf::runtime::exit_with_error(program, e.what());
+  }
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   constexpr const char* kProgram = "lmf-server";
@@ -34,6 +65,7 @@ int main(int argc, char** argv) {
   std::string state_dir;
   int snapshot_ms = static_cast<int>(options.snapshot_interval.count());
   std::string state_test_pause;
+  std::string replay;
 
   po::options_description description("Options");
   description.add_options()
@@ -62,7 +94,11 @@ int main(int argc, char** argv) {
        "0: after every fusion and sighting")
       ("state-test-pause", po::value<std::string>(&state_test_pause),
        "testing only, K,MS: in the K-th snapshot this process writes (1: the one at start), sleep MS ms "
-       "between syncing snapshot.tmp and renaming it (crash tests kill the server there)");
+       "between syncing snapshot.tmp and renaming it (crash tests kill the server there)")
+      ("replay", po::value<std::string>(&replay),
+       "fuse the local maps and sightings of this lcm-logger capture, in its order, instead of listening (on a "
+       "private memq:// bus: nothing is sent), write the outputs to --out and exit; e.g. to re-fuse a recorded "
+       "mission with another --config");
   lmf::runtime::add_common_options(description, common);
   lmf::runtime::parse_options_or_exit(
       argc, argv, description, kProgram,
@@ -96,10 +132,15 @@ int main(int argc, char** argv) {
       options.state_test_pause_at = at;
       options.state_test_pause = std::chrono::milliseconds(ms);
     }
+    if (!replay.empty() && !state_dir.empty()) throw std::invalid_argument("--replay and --state exclude each other");
+    if (!replay.empty() && !common.lcm_url.empty()) {
+      throw std::invalid_argument("--replay runs on a private memq:// bus; --lcm-url does not apply");
+    }
     options.validate();
   } catch (const std::exception& e) {
     lmf::runtime::exit_with_error(kProgram, e.what(), 2);
   }
+  if (!replay.empty()) return replay_capture_and_exit(kProgram, replay, common, options);
 
   lmf::runtime::Bus bus(common.lcm_url, lmf::runtime::auth_config_or_exit(common, "server", kProgram));
   if (!bus.good()) lmf::runtime::exit_with_error(kProgram, "cannot open LCM at '" + bus.url() + "'");

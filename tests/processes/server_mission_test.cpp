@@ -3,12 +3,15 @@
 // a short simulated mission; the final global map, corrected frames and
 // trajectories must equal lmf-offline's on the same inputs (DESIGN §7: FIFO
 // fusion in arrival order), and every local map is acked FUSED exactly once.
+// The local maps and sightings of that run, captured as lcm-logger would, and
+// replayed into a fresh server (lmf-server --replay) give the same map again.
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <tuple>
@@ -16,6 +19,9 @@
 
 #include <gtest/gtest.h>
 
+#include <lcm/lcm-cpp.hpp>
+
+#include "fusion_server/capture_replay.hpp"
 #include "fusion_server/server_node.hpp"
 #include "lmf/mission/mission_inputs.hpp"
 #include "lmf/mission/offline_mission.hpp"
@@ -46,6 +52,25 @@ TEST(ServerMission, LockstepReplayThroughTheServerEqualsOffline) {
                                               [&](const std::string&, const lmf::local_map_ack_t& a) {
                                                 ++acks[{a.robot_id, a.seq, a.status}];
                                               });
+
+  // What lcm-logger would capture of the traffic the server consumes (LCM's
+  // LogFile, the format lcm-logger writes).
+  const std::filesystem::path capture = dir.path() / "run.lcmlog";
+  std::optional<lcm::LogFile> capture_file;
+  capture_file.emplace(capture.string(), "w");
+  ASSERT_TRUE(capture_file->good());
+  std::int64_t captured = 0;
+  bus.subscribe(rt::Channels().local_map() + "|" + rt::Channels().sighting(),
+                [&](const std::string& channel, const void* data, std::size_t size) {
+                  if (!capture_file) return;
+                  lcm::LogEvent event{};
+                  event.eventnum = captured++;
+                  event.timestamp = captured;
+                  event.channel = channel;
+                  event.datalen = static_cast<std::int32_t>(size);
+                  event.data = const_cast<void*>(data);
+                  ASSERT_EQ(capture_file->writeEvent(&event), 0);
+                });
 
   lmf::server::ServerOptions server_options;
   server_options.global_map = config.global_map;
@@ -139,6 +164,85 @@ TEST(ServerMission, LockstepReplayThroughTheServerEqualsOffline) {
   for (const char* name : {"map.json", "map.svg", "trajectory.txt", "report.json"}) {
     EXPECT_TRUE(std::filesystem::exists(server_options.out_dir / name)) << name;
   }
+
+  // Replaying the capture into a fresh server (its own memq://, a queue of 2 so
+  // the replay must wait for room) fuses the same maps in the same order.
+  capture_file.reset();  // flushed and closed
+  ASSERT_GT(captured, 0);
+  rt::Bus replay_bus("memq://");
+  rt::EventLoop replay_loop(replay_bus, rt::EventLoopOptions{false});
+  lmf::server::ServerOptions replay_options = server_options;
+  replay_options.out_dir = dir.path() / "replay";
+  replay_options.queue_capacity = 2;
+  lmf::server::ServerNode replayed(replay_bus, replay_loop, rt::Channels(), replay_options);
+  const lmf::server::CaptureReplayStats stats =
+      lmf::server::replay_capture(capture, replay_bus, replay_loop, replayed, rt::Channels());
+  EXPECT_EQ(stats.events, captured);
+  EXPECT_EQ(stats.unread_bytes, 0);
+  EXPECT_EQ(stats.local_maps, server.stats().local_maps_received);
+  EXPECT_EQ(stats.sightings, server.stats().sightings_received);
+  EXPECT_EQ(replayed.stats().deferred_queue_full, 0);
+  EXPECT_EQ(replayed.view().fusion_count, server.view().fusion_count);
+  EXPECT_EQ(replayed.reject_counts().size(), 0u);
+  ASSERT_TRUE(replayed.shutdown(true));
+  const lmf::fusion::GlobalMap* replay_map = replayed.map_after_shutdown();
+  ASSERT_NE(replay_map, nullptr);
+  EXPECT_EQ(replay_map->counts().segments, counts.segments);
+  EXPECT_EQ(replay_map->counts().submaps, counts.submaps);
+  EXPECT_EQ(replay_map->counts().graph_edges, counts.graph_edges);
+  EXPECT_EQ(replay_map->counts().state_dimension, counts.state_dimension);
+  const auto live_segments = map->segments();
+  const auto replay_segments = replay_map->segments();
+  ASSERT_EQ(replay_segments.size(), live_segments.size());
+  for (std::size_t i = 0; i < live_segments.size(); ++i) {
+    EXPECT_LE((replay_segments[i].start_W - live_segments[i].start_W).norm(), 1e-12) << "segment " << i;
+    EXPECT_LE((replay_segments[i].end_W - live_segments[i].end_W).norm(), 1e-12) << "segment " << i;
+  }
+  for (const auto& frame : map->corrected_frames()) {
+    const auto ours = replay_map->corrected_frame(frame.robot_id);
+    ASSERT_TRUE(ours.has_value());
+    EXPECT_TRUE(lmf::is_near(ours->x_WL, frame.x_WL, 1e-12, 1e-12)) << "robot " << frame.robot_id;
+  }
+  EXPECT_TRUE(std::filesystem::exists(replay_options.out_dir / "map.json"));
+
+  // A capture cut in its last event (lcm-logger killed mid-write) is used up to there.
+  const std::filesystem::path cut = dir.path() / "cut.lcmlog";
+  std::filesystem::copy_file(capture, cut);
+  std::filesystem::resize_file(cut, std::filesystem::file_size(capture) - 10);
+  rt::Bus cut_bus("memq://");
+  rt::EventLoop cut_loop(cut_bus, rt::EventLoopOptions{false});
+  replay_options.out_dir = dir.path() / "cut";
+  lmf::server::ServerNode cut_node(cut_bus, cut_loop, rt::Channels(), replay_options);
+  const lmf::server::CaptureReplayStats cut_stats =
+      lmf::server::replay_capture(cut, cut_bus, cut_loop, cut_node, rt::Channels());
+  EXPECT_EQ(cut_stats.events, captured - 1);
+  EXPECT_GT(cut_stats.unread_bytes, 0);
+  cut_node.shutdown(false);
+}
+
+TEST(CaptureReplay, AMissingFileOrOneThatIsNotACaptureIsAnErrorNamingIt) {
+  lmf::testing::TempDir dir("lmf-capture-replay");
+  const std::filesystem::path bogus = dir.path() / "not-a-capture.lcmlog";
+  std::ofstream(bogus) << "this is not an lcm-logger file\n";
+  rt::Bus bus("memq://");
+  rt::EventLoop loop(bus, rt::EventLoopOptions{false});
+  lmf::server::ServerOptions options;
+  options.out_dir = dir.path() / "out";
+  lmf::server::ServerNode node(bus, loop, rt::Channels(), options);
+  try {
+    lmf::server::replay_capture(dir.path() / "missing.lcmlog", bus, loop, node, rt::Channels());
+    ADD_FAILURE() << "a missing file was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("missing.lcmlog"), std::string::npos) << e.what();
+  }
+  try {
+    lmf::server::replay_capture(bogus, bus, loop, node, rt::Channels());
+    ADD_FAILURE() << "a text file was read as a capture";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("not-a-capture.lcmlog"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(node.view().fusion_count, 0);
+  node.shutdown(false);
 }
 
 }  // namespace
