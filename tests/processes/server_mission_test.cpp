@@ -23,11 +23,13 @@
 
 #include "fusion_server/capture_replay.hpp"
 #include "fusion_server/server_node.hpp"
+#include "lmf/local_map_t.hpp"
 #include "lmf/mission/mission_inputs.hpp"
 #include "lmf/mission/offline_mission.hpp"
 #include "log_player/player_node.hpp"
 #include "player_test_support.hpp"
 #include "robot_agent/agent_node.hpp"
+#include "runtime/auth.hpp"
 #include "runtime/bus.hpp"
 #include "runtime/event_loop.hpp"
 
@@ -35,6 +37,68 @@ namespace {
 
 using namespace std::chrono_literals;
 namespace rt = lmf::runtime;
+
+// A fresh server on its own memq:// fed a capture (lmf-server --replay).
+struct Replay {
+  rt::Bus bus;
+  rt::EventLoop loop;
+  lmf::server::ServerNode node;
+  lmf::server::CaptureReplayStats stats;
+  Replay(const std::filesystem::path& capture, lmf::server::ServerOptions options,
+         std::optional<rt::auth::Config> keys = std::nullopt)
+      : bus("memq://", std::move(keys)),
+        loop(bus, rt::EventLoopOptions{false}),
+        node(bus, loop, rt::Channels(), std::move(options)),
+        stats(lmf::server::replay_capture(capture, bus, loop, node, rt::Channels())) {}
+};
+
+void expect_same_map(const lmf::fusion::GlobalMap& a, const lmf::fusion::GlobalMap& b) {
+  EXPECT_EQ(a.counts().segments, b.counts().segments);
+  EXPECT_EQ(a.counts().submaps, b.counts().submaps);
+  EXPECT_EQ(a.counts().graph_edges, b.counts().graph_edges);
+  EXPECT_EQ(a.counts().state_dimension, b.counts().state_dimension);
+  const auto sa = a.segments();
+  const auto sb = b.segments();
+  ASSERT_EQ(sa.size(), sb.size());
+  for (std::size_t i = 0; i < sa.size(); ++i) {
+    EXPECT_LE((sa[i].start_W - sb[i].start_W).norm(), 1e-12) << "segment " << i;
+    EXPECT_LE((sa[i].end_W - sb[i].end_W).norm(), 1e-12) << "segment " << i;
+  }
+  for (const auto& frame : b.corrected_frames()) {
+    const auto ours = a.corrected_frame(frame.robot_id);
+    ASSERT_TRUE(ours.has_value());
+    EXPECT_TRUE(lmf::is_near(ours->x_WL, frame.x_WL, 1e-12, 1e-12)) << "robot " << frame.robot_id;
+  }
+}
+
+// Writes `out`: `in`'s events signed as their senders would (local maps by
+// robot<N>, sightings by the player), with `keys` holding those senders' keys;
+// event number `alter` (if any) gets one payload byte flipped after signing.
+void sign_capture(const std::filesystem::path& in, const std::filesystem::path& out,
+                  const rt::auth::KeyRing& keys, std::optional<std::int64_t> alter) {
+  lcm::LogFile reader(in.string(), "r");
+  lcm::LogFile writer(out.string(), "w");
+  ASSERT_TRUE(reader.good() && writer.good());
+  std::map<std::string, std::unique_ptr<rt::auth::Signer>> signers;
+  std::vector<std::uint8_t> bytes;
+  while (const lcm::LogEvent* event = reader.readNextEvent()) {
+    std::string principal = "player";
+    if (event->channel == rt::Channels().local_map()) {
+      lmf::local_map_t m;
+      ASSERT_GE(m.decode(event->data, 0, event->datalen), 0);
+      principal = rt::auth::robot_principal(m.robot_id);
+    }
+    auto& signer = signers[principal];
+    if (!signer) signer = std::make_unique<rt::auth::Signer>(principal, *keys.find(principal), 1);
+    const auto* data = static_cast<const std::uint8_t*>(event->data);
+    signer->sign(event->channel, {data, static_cast<std::size_t>(event->datalen)}, bytes);
+    if (alter && event->eventnum == *alter) bytes[20] ^= 0x01;
+    lcm::LogEvent copy = *event;
+    copy.data = bytes.data();
+    copy.datalen = static_cast<std::int32_t>(bytes.size());
+    ASSERT_EQ(writer.writeEvent(&copy), 0);
+  }
+}
 
 TEST(ServerMission, LockstepReplayThroughTheServerEqualsOffline) {
   lmf::testing::TempDir dir("lmf-server-mission");
@@ -169,55 +233,56 @@ TEST(ServerMission, LockstepReplayThroughTheServerEqualsOffline) {
   // the replay must wait for room) fuses the same maps in the same order.
   capture_file.reset();  // flushed and closed
   ASSERT_GT(captured, 0);
-  rt::Bus replay_bus("memq://");
-  rt::EventLoop replay_loop(replay_bus, rt::EventLoopOptions{false});
   lmf::server::ServerOptions replay_options = server_options;
-  replay_options.out_dir = dir.path() / "replay";
   replay_options.queue_capacity = 2;
-  lmf::server::ServerNode replayed(replay_bus, replay_loop, rt::Channels(), replay_options);
-  const lmf::server::CaptureReplayStats stats =
-      lmf::server::replay_capture(capture, replay_bus, replay_loop, replayed, rt::Channels());
-  EXPECT_EQ(stats.events, captured);
-  EXPECT_EQ(stats.unread_bytes, 0);
-  EXPECT_EQ(stats.local_maps, server.stats().local_maps_received);
-  EXPECT_EQ(stats.sightings, server.stats().sightings_received);
-  EXPECT_EQ(replayed.stats().deferred_queue_full, 0);
-  EXPECT_EQ(replayed.view().fusion_count, server.view().fusion_count);
-  EXPECT_EQ(replayed.reject_counts().size(), 0u);
-  ASSERT_TRUE(replayed.shutdown(true));
-  const lmf::fusion::GlobalMap* replay_map = replayed.map_after_shutdown();
-  ASSERT_NE(replay_map, nullptr);
-  EXPECT_EQ(replay_map->counts().segments, counts.segments);
-  EXPECT_EQ(replay_map->counts().submaps, counts.submaps);
-  EXPECT_EQ(replay_map->counts().graph_edges, counts.graph_edges);
-  EXPECT_EQ(replay_map->counts().state_dimension, counts.state_dimension);
-  const auto live_segments = map->segments();
-  const auto replay_segments = replay_map->segments();
-  ASSERT_EQ(replay_segments.size(), live_segments.size());
-  for (std::size_t i = 0; i < live_segments.size(); ++i) {
-    EXPECT_LE((replay_segments[i].start_W - live_segments[i].start_W).norm(), 1e-12) << "segment " << i;
-    EXPECT_LE((replay_segments[i].end_W - live_segments[i].end_W).norm(), 1e-12) << "segment " << i;
+  replay_options.out_dir = dir.path() / "replay";
+  {
+    Replay replay(capture, replay_options);
+    EXPECT_EQ(replay.stats.events, captured);
+    EXPECT_EQ(replay.stats.unread_bytes, 0);
+    EXPECT_EQ(replay.stats.local_maps, server.stats().local_maps_received);
+    EXPECT_EQ(replay.stats.sightings, server.stats().sightings_received);
+    EXPECT_EQ(replay.node.stats().deferred_queue_full, 0);
+    EXPECT_EQ(replay.node.view().fusion_count, server.view().fusion_count);
+    EXPECT_EQ(replay.node.reject_counts().size(), 0u);
+    ASSERT_TRUE(replay.node.shutdown(true));
+    expect_same_map(*replay.node.map_after_shutdown(), *map);
+    EXPECT_TRUE(std::filesystem::exists(replay_options.out_dir / "map.json"));
   }
-  for (const auto& frame : map->corrected_frames()) {
-    const auto ours = replay_map->corrected_frame(frame.robot_id);
-    ASSERT_TRUE(ours.has_value());
-    EXPECT_TRUE(lmf::is_near(ours->x_WL, frame.x_WL, 1e-12, 1e-12)) << "robot " << frame.robot_id;
+
+  // The same capture as a system running with --keys would have sent it, read
+  // by a server with its keys: verified, the same map. One altered byte: that
+  // message is refused (auth_bad_tag), every other one verified.
+  const auto keys = rt::auth::make_system_keys({inputs.robots[0].robot_id, inputs.robots[1].robot_id});
+  const rt::auth::Config server_keys{"server", std::make_shared<const rt::auth::KeyRing>(keys.at("server"))};
+  const std::filesystem::path signed_capture = dir.path() / "signed.lcmlog";
+  sign_capture(capture, signed_capture, keys.at("server"), std::nullopt);
+  {
+    Replay replay(signed_capture, replay_options, server_keys);
+    EXPECT_EQ(replay.node.reject_counts().size(), 0u);
+    EXPECT_EQ(replay.bus.messages_verified(), replay.stats.local_maps + replay.stats.sightings);
+    ASSERT_TRUE(replay.node.shutdown(false));
+    expect_same_map(*replay.node.map_after_shutdown(), *map);
   }
-  EXPECT_TRUE(std::filesystem::exists(replay_options.out_dir / "map.json"));
+  const std::filesystem::path altered = dir.path() / "altered.lcmlog";
+  sign_capture(capture, altered, keys.at("server"), std::int64_t{0});
+  {
+    Replay replay(altered, replay_options, server_keys);
+    EXPECT_EQ(replay.bus.rejects().count(rt::RejectReason::kAuthBadTag), 1);
+    EXPECT_EQ(replay.bus.messages_verified(), replay.stats.local_maps + replay.stats.sightings - 1);
+    replay.node.shutdown(false);
+  }
 
   // A capture cut in its last event (lcm-logger killed mid-write) is used up to there.
   const std::filesystem::path cut = dir.path() / "cut.lcmlog";
   std::filesystem::copy_file(capture, cut);
   std::filesystem::resize_file(cut, std::filesystem::file_size(capture) - 10);
-  rt::Bus cut_bus("memq://");
-  rt::EventLoop cut_loop(cut_bus, rt::EventLoopOptions{false});
-  replay_options.out_dir = dir.path() / "cut";
-  lmf::server::ServerNode cut_node(cut_bus, cut_loop, rt::Channels(), replay_options);
-  const lmf::server::CaptureReplayStats cut_stats =
-      lmf::server::replay_capture(cut, cut_bus, cut_loop, cut_node, rt::Channels());
-  EXPECT_EQ(cut_stats.events, captured - 1);
-  EXPECT_GT(cut_stats.unread_bytes, 0);
-  cut_node.shutdown(false);
+  {
+    Replay replay(cut, replay_options);
+    EXPECT_EQ(replay.stats.events, captured - 1);
+    EXPECT_GT(replay.stats.unread_bytes, 0);
+    replay.node.shutdown(false);
+  }
 }
 
 TEST(CaptureReplay, AMissingFileOrOneThatIsNotACaptureIsAnErrorNamingIt) {
