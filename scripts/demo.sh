@@ -3,7 +3,8 @@
 # 3-robot mission in the built-in building, runs it as separate processes
 # (lmf-server, three lmf-agent, lmf-player in lockstep, lmf-monitor and
 # lcm-logger) inside a private network namespace, and prints the summary and
-# the ATE against ground truth. Everything goes to OUT (default: out/).
+# the ATE against ground truth; then re-fuses the capture offline (lmf-server
+# --replay) and checks it gives the same map. Everything goes to OUT (default: out/).
 #   scripts/demo.sh [--rate R] [--secure]   (default: --lockstep, the fastest replay)
 # --secure: lmf-keygen writes one keys file per process into OUT/keys and every
 # process signs and verifies its messages (--keys); prints the rejections.
@@ -73,4 +74,17 @@ rejects = json.load(open(sys.argv[1])).get("rejects", {})
 print("server report.json rejects:", json.dumps(rejects) if rejects else "none")
 PY
 fi
-echo "== outputs in $out: map.svg map.json report.json trajectory.txt trajectories/ timing.svg lmf.lcmlog logs/ sim/"
+echo "== the capture re-fused offline: lmf-server --replay $out/lmf.lcmlog --out $out/replay"
+replay_keys=()
+if ((secure)); then replay_keys=(--keys "$out/keys/server.keys"); fi
+"$build/fusion_server/lmf-server" --replay "$out/lmf.lcmlog" --config "$root/config/sim.json" "${replay_keys[@]}" \
+  --out "$out/replay" 2>&1 || true
+python3 - "$out/map.json" "$out/replay/map.json" <<'PY' 2>/dev/null || echo "(no replayed map to compare)"
+import json, sys
+live, again = (json.load(open(f))["segments"] for f in sys.argv[1:3])
+same = len(live) == len(again)
+worst = max((abs(a - b) for s, t in zip(live, again) for k in ("start", "end") for a, b in zip(s[k], t[k])), default=0.0)
+print(f"same map as the live server: {'yes' if same and worst < 1e-9 else 'NO'} "
+      f"({len(again)} segments, largest endpoint difference {worst:.1e} m)")
+PY
+echo "== outputs in $out: map.svg map.json report.json trajectory.txt trajectories/ timing.svg lmf.lcmlog logs/ sim/ replay/"
