@@ -3,7 +3,8 @@
 # separate processes (lmf-server, two lmf-agent, lmf-player --lockstep,
 # lmf-monitor, lcm-logger) inside a private network namespace must give the
 # same trajectories as lmf-offline on the same input, within 1 cm; the monitor's
-# JSON lines must parse and the capture must read back.
+# JSON lines must parse and the capture must read back (lmf-monitor --log), and
+# lmf-server --replay on the capture must give the live server's map again.
 #   distributed_matches_offline.sh BUILD_DIR SOURCE_DIR
 # Exit 77 (skipped) when no private network namespace can be made here.
 set -euo pipefail
@@ -41,4 +42,20 @@ PY
 "$build/monitor/lmf-monitor" --log "$work/distributed/lmf.lcmlog" --json >"$work/replayed.jsonl"
 python3 -c "import json,sys; [json.loads(l) for l in open(sys.argv[1]) if l.strip()]" "$work/replayed.jsonl" || status=1
 echo "monitor --log on the capture: $(grep -c . "$work/replayed.jsonl") JSON lines"
+# lmf-server --replay on the capture: the live server's map again.
+"$build/fusion_server/lmf-server" --replay "$work/distributed/lmf.lcmlog" --config "$config" \
+  --out "$work/replay" 2>"$work/replay.log" || { cat "$work/replay.log"; status=1; }
+cat "$work/replay.log"
+python3 - "$work/distributed/map.json" "$work/replay/map.json" <<'PY' || status=1
+import json, sys
+live, again = (json.load(open(f)) for f in sys.argv[1:3])
+assert live["counts"] == again["counts"], f"counts {again['counts']} vs live {live['counts']}"
+worst = max((abs(a - b) for s, t in zip(live["segments"], again["segments"]) for k in ("start", "end")
+             for a, b in zip(s[k], t[k])), default=0.0)
+assert worst < 1e-9, f"replayed segments differ from the live ones by up to {worst} m"
+print(f"lmf-server --replay: the live map again ({len(again['segments'])} segments, largest difference {worst:.1e} m)")
+PY
+"$build/fusion_server/lmf-server" --replay "$work/no-such.lcmlog" --out "$work/none" 2>"$work/missing.log" \
+  && { echo "FAIL: a missing capture was accepted"; status=1; }
+grep -q "no-such.lcmlog" "$work/missing.log" || { echo "FAIL: the error does not name the file"; cat "$work/missing.log"; status=1; }
 exit $status
