@@ -41,7 +41,9 @@ int replay_capture_and_exit(const char* program, const std::string& capture, con
       std::cerr << program << ": the last " << stats.unread_bytes
                 << " bytes of the capture are not a complete event (cut short?) and were not read\n";
     }
-    for (const auto& [reason, count] : node.reject_counts()) std::cerr << "  rejected (" << reason << "): " << count << '\n';
+    for (const auto& [reason, count] : node.reject_counts()) {
+      std::cerr << "  rejected (" << reason << "): " << count << '\n';
+    }
     return written ? 0 : 1;
   } catch (const std::exception& e) {
     lmf::runtime::exit_with_error(program, e.what());
