@@ -279,31 +279,37 @@ void GlobalMap::check_covariance(const Eigen::MatrixXd& P, const std::string& wh
 }
 
 void GlobalMap::validate(const LocalMapSnapshot& s) const {
-  const std::string at = where(s.robot_id, s.seq);
-  if (s.seq < 0) throw InvalidInput(Reason::kOutOfRange, at + ": negative sequence number");
-  check_pose(s.x_LR, at + ": robot pose x_LR");
+  // This runs on every local map: the messages are built only for a rejection.
+  const auto at = [&s] { return where(s.robot_id, s.seq); };
+  if (s.seq < 0) throw InvalidInput(Reason::kOutOfRange, at() + ": negative sequence number");
+  if (const auto problem = pose_problem(s.x_LR)) {
+    throw InvalidInput(problem->first, at() + ": robot pose x_LR" + problem->second);
+  }
   for (std::size_t j = 0; j < s.segments.size(); ++j) {
     const SegmentEstimate& seg = s.segments[j];
-    const std::string name = at + ": segment " + std::to_string(j);
-    check_pose(seg.location, name + " location");
-    if (!std::isfinite(seg.length_m)) throw InvalidInput(Reason::kNonFinite, name + " length is not finite");
+    const auto name = [&] { return at() + ": segment " + std::to_string(j); };
+    if (const auto problem = pose_problem(seg.location)) {
+      throw InvalidInput(problem->first, name() + " location" + problem->second);
+    }
+    if (!std::isfinite(seg.length_m)) throw InvalidInput(Reason::kNonFinite, name() + " length is not finite");
     if (seg.length_m <= 0.0 || seg.length_m > config_.max_coordinate_m) {
-      throw InvalidInput(Reason::kOutOfRange, name + " has length " + std::to_string(seg.length_m) + " (must be > 0)");
+      throw InvalidInput(Reason::kOutOfRange,
+                         name() + " has length " + std::to_string(seg.length_m) + " (must be > 0)");
     }
   }
   for (std::size_t i = 0; i < s.scan_poses.size(); ++i) {
     if (const auto problem = pose_problem(s.scan_poses[i].x_LR)) {
-      throw InvalidInput(problem->first, at + ": scan pose " + std::to_string(i) + problem->second);
+      throw InvalidInput(problem->first, at() + ": scan pose " + std::to_string(i) + problem->second);
     }
   }
   const auto expected = static_cast<Eigen::Index>(3 + 2 * s.segments.size());
   if (s.covariance.rows() != expected || s.covariance.cols() != expected) {
-    throw InvalidInput(Reason::kMalformed, at + ": covariance is " + std::to_string(s.covariance.rows()) + "x" +
+    throw InvalidInput(Reason::kMalformed, at() + ": covariance is " + std::to_string(s.covariance.rows()) + "x" +
                                                std::to_string(s.covariance.cols()) + ", expected " +
                                                std::to_string(expected) + " (3 + 2 x " +
                                                std::to_string(s.segments.size()) + " segments)");
   }
-  check_covariance(s.covariance, at + ": covariance");
+  check_covariance(s.covariance, at() + ": covariance");
 }
 
 // ---------------------------------------------------------------------------
@@ -840,8 +846,10 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
       const auto nK = static_cast<Eigen::Index>(K.size());
       Eigen::MatrixXd B(2, nK);
       for (Eigen::Index a = 0; a < nK; ++a) B.col(a) = S_all.block(r0, K[static_cast<std::size_t>(a)], 2, 1);
-      const Eigen::MatrixXd B_Sinv = B * S_K_inv;
-      Eigen::MatrixXd residual = S_all.block(r0, r0, 2, 2) - B_Sinv * B.transpose();
+      // Products of 2 or 3 rows: coefficient-based (lazyProduct); Eigen's blocked
+      // GEMM spends more on packing than on the arithmetic at these shapes.
+      const Eigen::MatrixXd B_Sinv = B.lazyProduct(S_K_inv);
+      Eigen::MatrixXd residual = S_all.block(r0, r0, 2, 2) - B_Sinv.lazyProduct(B.transpose());
       residual = (0.5 * (residual + residual.transpose())).eval();
       const Eigen::VectorXd nu = h_all.segment(r0, 2) - B_Sinv * h_K;
       const spmap::CarefulInverse ci = spmap::careful_inverse(residual, rel, threshold / rel);
@@ -869,8 +877,8 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
       for (Eigen::Index a = 0; a < kc; ++a) Bk_Sinv.row(a) = B_Sinv.row(ci.kept[static_cast<std::size_t>(a)]);
       const Eigen::MatrixXd& Rk_inv = ci.inverse;
       Eigen::MatrixXd grown(nK + kc, nK + kc);
-      grown.topLeftCorner(nK, nK) = S_K_inv + Bk_Sinv.transpose() * Rk_inv * Bk_Sinv;
-      grown.topRightCorner(nK, kc) = -Bk_Sinv.transpose() * Rk_inv;
+      grown.topRightCorner(nK, kc).noalias() = -Bk_Sinv.transpose().lazyProduct(Rk_inv);
+      grown.topLeftCorner(nK, nK).noalias() = S_K_inv - grown.topRightCorner(nK, kc).lazyProduct(Bk_Sinv);
       grown.bottomLeftCorner(kc, nK) = grown.topRightCorner(nK, kc).transpose();
       grown.bottomRightCorner(kc, kc) = Rk_inv;
       S_K_inv = std::move(grown);

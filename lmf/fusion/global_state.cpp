@@ -327,10 +327,12 @@ void GlobalState::replace_perturbation(EntityId target, const std::vector<Linear
 }
 
 void GlobalState::transform_perturbations(const std::vector<LinearTerm>& maps) {
+  // Each J is at most 3 x 3: copied into a fixed array so the sweeps below run
+  // on registers, not through a dynamic matrix per element.
   struct Target {
     Eigen::Index offset;
     Eigen::Index dof;
-    const Eigen::MatrixXd* J;
+    Eigen::Matrix3d J;  // top-left dof x dof used
   };
   std::vector<Target> targets;
   targets.reserve(maps.size());
@@ -342,7 +344,9 @@ void GlobalState::transform_perturbations(const std::vector<LinearTerm>& maps) {
                                   std::to_string(map.J.rows()) + "x" + std::to_string(map.J.cols()) +
                                   ", expected " + std::to_string(d) + "x" + std::to_string(d));
     }
-    targets.push_back({e.offset, d, &map.J});
+    Target t{e.offset, d, Eigen::Matrix3d::Zero()};
+    t.J.topLeftCorner(d, d) = map.J;
+    targets.push_back(t);
   }
   std::sort(targets.begin(), targets.end(), [](const Target& a, const Target& b) { return a.offset < b.offset; });
   for (std::size_t i = 1; i < targets.size(); ++i) {
@@ -350,40 +354,55 @@ void GlobalState::transform_perturbations(const std::vector<LinearTerm>& maps) {
       throw std::invalid_argument("GlobalState::transform_perturbations: an entity is listed twice");
     }
   }
+  // v ← J v for the dof (2 or 3) values at v, v + stride, ...
+  const auto apply = [](const Target& t, double* v, Eigen::Index stride) {
+    const double v0 = v[0];
+    const double v1 = v[stride];
+    if (t.dof == 2) {
+      v[0] = t.J(0, 0) * v0 + t.J(0, 1) * v1;
+      v[stride] = t.J(1, 0) * v0 + t.J(1, 1) * v1;
+      return;
+    }
+    const double v2 = v[2 * stride];
+    for (Eigen::Index a = 0; a < 3; ++a) v[a * stride] = t.J(a, 0) * v0 + t.J(a, 1) * v1 + t.J(a, 2) * v2;
+  };
   // Diagonal blocks from the old P: J D Jᵀ.
-  std::vector<Eigen::MatrixXd> diagonal;
+  std::vector<Eigen::Matrix3d> diagonal;
   diagonal.reserve(targets.size());
   for (const Target& t : targets) {
-    const Eigen::MatrixXd D = symmetric_from_lower(storage_.block(t.offset, t.offset, t.dof, t.dof));
-    diagonal.push_back(*t.J * D * t.J->transpose());
+    Eigen::Matrix3d D = Eigen::Matrix3d::Zero();
+    D.topLeftCorner(t.dof, t.dof) = symmetric_from_lower(storage_.block(t.offset, t.offset, t.dof, t.dof));
+    diagonal.push_back(t.J * D * t.J.transpose());
   }
   // Rows: P(t, j) ← J_t P(t, j) for every stored column j left of t's block,
   // column by column (a target's rows in column j are contiguous).
   std::size_t first = 0;  // the first target whose block starts after column j
-  double v[3];
   for (Eigen::Index j = 0; j < n_ && first < targets.size(); ++j) {
     while (first < targets.size() && targets[first].offset <= j) ++first;
     double* column = &storage_(0, j);
-    for (std::size_t i = first; i < targets.size(); ++i) {
-      const Target& t = targets[i];
-      double* rows = column + t.offset;
-      for (Eigen::Index a = 0; a < t.dof; ++a) v[a] = rows[a];
-      for (Eigen::Index a = 0; a < t.dof; ++a) {
-        double sum = 0.0;
-        for (Eigen::Index b = 0; b < t.dof; ++b) sum += (*t.J)(a, b) * v[b];
-        rows[a] = sum;
-      }
-    }
+    for (std::size_t i = first; i < targets.size(); ++i) apply(targets[i], column + targets[i].offset, 1);
   }
-  // Columns: P(i, t) ← P(i, t) J_tᵀ below t's block (rows of later targets
-  // already carry their J: J_a P_ab J_bᵀ).
+  // Columns: P(i, t) ← P(i, t) J_tᵀ below t's block, row by row (rows of later
+  // targets already carry their J: J_a P_ab J_bᵀ).
+  const Eigen::Index ld = storage_.outerStride();
   for (std::size_t i = 0; i < targets.size(); ++i) {
     const Target& t = targets[i];
     const Eigen::Index below = n_ - t.offset - t.dof;
-    auto block = storage_.block(t.offset + t.dof, t.offset, below, t.dof);
-    const Eigen::MatrixXd old = block;
-    block.noalias() = old.lazyProduct(t.J->transpose());
-    storage_.block(t.offset, t.offset, t.dof, t.dof) = 0.5 * (diagonal[i] + diagonal[i].transpose());
+    double* c0 = &storage_(t.offset + t.dof, t.offset);  // the dof columns, from the row under the block
+    double* c1 = c0 + ld;
+    if (t.dof == 2) {  // segments: a loop the compiler vectorises over the rows
+      const double j00 = t.J(0, 0), j01 = t.J(0, 1), j10 = t.J(1, 0), j11 = t.J(1, 1);
+      for (Eigen::Index r = 0; r < below; ++r) {
+        const double a = c0[r];
+        const double b = c1[r];
+        c0[r] = j00 * a + j01 * b;
+        c1[r] = j10 * a + j11 * b;
+      }
+    } else {
+      for (Eigen::Index r = 0; r < below; ++r) apply(t, c0 + r, ld);
+    }
+    const Eigen::Matrix3d sym = 0.5 * (diagonal[i] + diagonal[i].transpose());
+    storage_.block(t.offset, t.offset, t.dof, t.dof) = sym.topLeftCorner(t.dof, t.dof);
   }
 }
 

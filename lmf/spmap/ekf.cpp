@@ -120,14 +120,18 @@ ImplicitMeasurement measurement_from_chain(const std::vector<ChainLink>& links, 
   }
 
   const ChainValue chain = evaluate_chain(links);
-  // B_out: the selected rows of (x, y, phi).
-  Eigen::MatrixXd B_out = Eigen::MatrixXd::Zero(r, 3);
-  for (Eigen::Index i = 0; i < r; ++i) B_out(i, rows[static_cast<std::size_t>(i)]) = 1.0;
+  // B_out selects rows of (x, y, phi): taken as rows, not multiplied.
+  const auto B_out = [&rows](const auto& M) {
+    Eigen::MatrixXd out(static_cast<Eigen::Index>(rows.size()), M.cols());
+    for (std::size_t i = 0; i < rows.size(); ++i) out.row(static_cast<Eigen::Index>(i)) = M.row(rows[i]);
+    return out;
+  };
 
   ImplicitMeasurement m;
   const Eigen::Vector3d value = chain.value.vector();
-  m.h = B_out * value;
+  m.h.resize(r);
   for (Eigen::Index i = 0; i < r; ++i) {
+    m.h(i) = value(rows[static_cast<std::size_t>(i)]);
     if (target.size() != 0) m.h(i) -= target(i);
     // DESIGN §3: angle innovations are wrapped, never a 2pi jump.
     if (rows[static_cast<std::size_t>(i)] == 2) m.h(i) = wrap_angle(m.h(i));
@@ -135,7 +139,7 @@ ImplicitMeasurement measurement_from_chain(const std::vector<ChainLink>& links, 
   m.R = Eigen::MatrixXd::Zero(r, r);
 
   for (std::size_t l = 0; l < links.size(); ++l) {
-    const Eigen::MatrixXd J = B_out * chain.jacobians[l];
+    const Eigen::MatrixXd J = B_out(chain.jacobians[l]);
     if (links[l].entity) {
       // One block per entity: an entity that appears twice (shared ancestors,
       // the target itself) gets its contributions summed.

@@ -24,13 +24,19 @@ ChainValue evaluate_chain(const std::vector<ChainLink>& links) {
   const Pose2 zero;
   for (std::size_t l = 0; l < k; ++l) {
     const ChainLink& link = links[l];
-    // ∂(x̂ ⊕ Bᵀp)/∂p at p = 0 (paper eq. 1), then through ⊖ when inverted.
-    Eigen::MatrixXd J_link = J2compose(link.location, zero) * binding(link.kind).transpose();
-    if (link.inverted) J_link = Jinverse(link.location) * J_link;
-    // value = prefix ⊕ (v_l ⊕ suffix): chain rule through both compositions.
-    const Eigen::Matrix3d J_through =
-        J2compose(prefix[l], compose(v[l], suffix[l])) * J1compose(v[l], suffix[l]);
-    out.jacobians.emplace_back(J_through * J_link);
+    // ∂(x̂ ⊕ Bᵀp)/∂p at p = 0 (paper eq. 1), then through ⊖ when inverted;
+    // B selects (y, phi) for a segment, all of (x, y, phi) otherwise (DESIGN §3).
+    Eigen::Matrix3d J_link = J2compose(link.location, zero);
+    if (link.inverted) J_link = (Jinverse(link.location) * J_link).eval();
+    // value = prefix ⊕ (v_l ⊕ suffix): chain rule through both compositions
+    // (J2compose does not depend on its second argument).
+    const Eigen::Matrix3d J_through = J2compose(prefix[l], zero) * J1compose(v[l], suffix[l]);
+    const Eigen::Matrix3d J = J_through * J_link;
+    if (dof(link.kind) == 2) {  // a segment (dof also rejects an out-of-range kind)
+      out.jacobians.emplace_back(J.rightCols<2>());
+    } else {
+      out.jacobians.emplace_back(J);
+    }
   }
   return out;
 }
