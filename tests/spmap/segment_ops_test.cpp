@@ -1,9 +1,12 @@
 #include "lmf/spmap/segment_ops.hpp"
 
+#include <cmath>
 #include <limits>
 #include <numbers>
 #include <stdexcept>
+#include <string>
 
+#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
 
 #include "lmf/spmap/covariance_check.hpp"
@@ -150,6 +153,47 @@ TEST(CovarianceCheck, FlagsAsymmetricAndIndefinite) {
   Eigen::Matrix2d nan = Eigen::Matrix2d::Identity();
   nan(1, 1) = std::numeric_limits<double>::quiet_NaN();
   EXPECT_FALSE(check_covariance(nan).ok());
+}
+
+// Sizes below and above the switch from the left-looking Cholesky to
+// Eigen::LLT (100 rows) must give the same verdicts.
+TEST(CovarianceCheck, SameVerdictsForSmallAndLargeMatrices) {
+  for (const int n : {5, 63, 100, 101, 140}) {
+    SCOPED_TRACE("n = " + std::to_string(n));
+    // Rank n/3 (singular, PSD) with a wide spread of scales.
+    Eigen::MatrixXd A = Eigen::MatrixXd::Random(n, std::max(1, n / 3));
+    A.row(0) *= 1e3;
+    const Eigen::MatrixXd singular = A * A.transpose();
+    EXPECT_TRUE(check_covariance(singular).ok());
+    const Eigen::MatrixXd full = singular + Eigen::MatrixXd::Identity(n, n);
+    const CovarianceHealth ok = check_covariance(full);
+    EXPECT_TRUE(ok.ok());
+    EXPECT_FALSE(ok.min_eigenvalue.has_value());  // certified by the factorisation alone
+
+    // One eigenvalue pushed to -1e-5 x the largest variance: 1e4 times the
+    // tolerance (1e-9 x that variance).
+    const double negative = -1e-5 * full.diagonal().maxCoeff();
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(full);
+    Eigen::VectorXd lambda = es.eigenvalues();
+    lambda(0) = negative;
+    const Eigen::MatrixXd indefinite = es.eigenvectors() * lambda.asDiagonal() * es.eigenvectors().transpose();
+    const CovarianceHealth bad = check_covariance(0.5 * (indefinite + indefinite.transpose()));
+    EXPECT_TRUE(bad.symmetric);
+    EXPECT_FALSE(bad.positive_semidefinite);
+    ASSERT_TRUE(bad.min_eigenvalue.has_value());
+    EXPECT_NEAR(*bad.min_eigenvalue, negative, 1e-3 * std::abs(negative));
+
+    // Entries that overflow inside the factorisation, an inf and a NaN.
+    Eigen::MatrixXd huge = full;
+    huge(n - 1, 0) = huge(0, n - 1) = 1e300;
+    EXPECT_FALSE(check_covariance(huge).ok());
+    Eigen::MatrixXd inf = full;
+    inf(n / 2, n / 2) = std::numeric_limits<double>::infinity();
+    EXPECT_FALSE(check_covariance(inf).ok());
+    Eigen::MatrixXd nan = full;
+    nan(0, n - 1) = std::numeric_limits<double>::quiet_NaN();  // upper triangle only
+    EXPECT_FALSE(check_covariance(nan).ok());
+  }
 }
 
 }  // namespace
