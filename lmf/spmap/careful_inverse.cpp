@@ -37,6 +37,9 @@ CarefulInverse careful_inverse(const Eigen::MatrixXd& S, double relative_toleran
 
   std::vector<bool> swept(static_cast<std::size_t>(m), false);
   double smallest_kept = std::numeric_limits<double>::infinity();
+  Eigen::VectorXd col(m);          // column k before the sweep overwrites it
+  Eigen::RowVectorXd col_d(m);     // its transpose over the pivot
+  result.kept.reserve(static_cast<std::size_t>(m));
   for (Eigen::Index step = 0; step < m; ++step) {
     // Full symmetric pivoting: the largest remaining diagonal pivot.
     Eigen::Index k = -1;
@@ -52,8 +55,9 @@ CarefulInverse careful_inverse(const Eigen::MatrixXd& S, double relative_toleran
     if (k < 0 || best <= threshold) break;
 
     const double d = A(k, k);
-    const Eigen::VectorXd col = A.col(k);  // copy: the sweep overwrites column k
-    A.noalias() -= col * (col.transpose() / d);
+    col = A.col(k);
+    col_d = col.transpose() / d;
+    A.noalias() -= col * col_d;
     A.col(k) = col / d;
     A.row(k) = col.transpose() / d;
     A(k, k) = -1.0 / d;
