@@ -138,8 +138,9 @@ ImplicitMeasurement measurement_from_chain(const std::vector<ChainLink>& links, 
   }
   m.R = Eigen::MatrixXd::Zero(r, r);
 
+  m.blocks.reserve(links.size());
   for (std::size_t l = 0; l < links.size(); ++l) {
-    const Eigen::MatrixXd J = B_out(chain.jacobians[l]);
+    Eigen::MatrixXd J = B_out(chain.jacobians[l]);
     if (links[l].entity) {
       // One block per entity: an entity that appears twice (shared ancestors,
       // the target itself) gets its contributions summed.
@@ -150,7 +151,7 @@ ImplicitMeasurement measurement_from_chain(const std::vector<ChainLink>& links, 
       if (existing != nullptr) {
         existing->J += J;
       } else {
-        m.blocks.push_back({*links[l].entity, J});
+        m.blocks.push_back({*links[l].entity, std::move(J)});
       }
     } else if (!link_noise.empty() && link_noise[l].size() != 0) {
       const Eigen::MatrixXd& R_l = link_noise[l];
