@@ -868,7 +868,7 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& s) {
         continue;
       }
       accepted.push_back(order[c]);
-      accepted_measurements.push_back(candidates[order[c]].measurement);
+      accepted_measurements.push_back(std::move(candidates[order[c]].measurement));  // the test reads h_all, S_all
       d2 = d2_new;
       dof = dof_new;
       if (kc == 0) continue;

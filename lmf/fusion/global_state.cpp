@@ -137,8 +137,10 @@ void GlobalState::remove(const std::vector<EntityId>& ids) {
 
   n_ = next_offset;
   entities_ = std::move(kept);
-  index_.clear();
-  for (std::size_t i = 0; i < entities_.size(); ++i) index_.emplace(entities_[i].id, i);
+  // The index in place: positions reassigned, the removed erased (no rebuild:
+  // a node per entity allocated and freed on every fusion).
+  for (const EntityId id : doomed) index_.erase(id);
+  for (std::size_t i = 0; i < entities_.size(); ++i) index_.find(entities_[i].id)->second = i;
 }
 
 const Entity& GlobalState::entity(EntityId id) const { return entities_[index_of(id)]; }
