@@ -14,7 +14,6 @@
 // Usage: lmf_bench_fusion [--sizes=100,500,...] [Google Benchmark flags]
 #include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <random>
@@ -25,45 +24,16 @@
 #include <Eigen/Core>
 #include <benchmark/benchmark.h>
 
-#include "fusion/synthetic_maps.hpp"
+#include "fusion/serpentine_building.hpp"
 #include "lmf/fusion/global_map.hpp"
 
 namespace {
 
-using lmf::Pose2;
 using lmf::fusion::FusionReport;
 using lmf::fusion::GlobalMap;
 using lmf::fusion::synthetic::Wall;
+namespace synthetic = lmf::fusion::synthetic;
 using Clock = std::chrono::steady_clock;
-
-constexpr double kCell = 12.0;
-constexpr int kColumns = 20;
-constexpr int kWallsPerCell = 30;
-
-// Cell i of the serpentine: its centre, and the heading towards cell i + 1.
-Pose2 cell_frame(int i) {
-  auto centre = [](int c) {
-    const int row = c / kColumns;
-    const int col = row % 2 == 0 ? c % kColumns : kColumns - 1 - c % kColumns;
-    return Eigen::Vector2d(kCell * col, kCell * row);
-  };
-  const Eigen::Vector2d a = centre(i);
-  const Eigen::Vector2d b = centre(i + 1);
-  return {a.x(), a.y(), std::atan2(b.y() - a.y(), b.x() - a.x())};
-}
-
-// 30 walls of 1.2 m on a 6 x 5 grid (2 m apart) in cell i, in four directions.
-std::vector<Wall> cell_walls(int i) {
-  const Pose2 c = cell_frame(i);
-  std::vector<Wall> walls;
-  for (int w = 0; w < kWallsPerCell; ++w) {
-    const double x = -5.0 + 2.0 * (w % 6);
-    const double y = -4.0 + 2.0 * (w / 6);
-    const double phi = (M_PI / 2) * ((w * 7 + i * 3) % 4) - M_PI / 2;
-    walls.push_back({Pose2(c.x + x, c.y + y, lmf::wrap_angle(phi)), 1.2});
-  }
-  return walls;
-}
 
 // The growing global map shared by the sizes (built once, in increasing size).
 struct World {
@@ -73,14 +43,7 @@ struct World {
 
   void grow_to(int segments) {
     while (map.counts().segments < segments) {
-      std::vector<Wall> seen = cell_walls(cells);
-      if (cells > 0) {
-        const std::vector<Wall> previous = cell_walls(cells - 1);
-        seen.insert(seen.end(), previous.begin(), previous.begin() + 3);
-      }
-      const Pose2 x_WL = cell_frame(cells);
-      map.fuse(lmf::fusion::synthetic::make_snapshot(0, cells, x_WL, lmf::between(x_WL, cell_frame(cells + 1)), seen,
-                                                     {}, &rng));
+      map.fuse(synthetic::serpentine_growth_snapshot(cells, rng));
       ++cells;
     }
   }
@@ -88,13 +51,11 @@ struct World {
   // The measured local map: 15 walls of the last cell again, 15 of the next one.
   lmf::LocalMapSnapshot measured_snapshot() {
     std::vector<Wall> seen;
-    const std::vector<Wall> previous = cell_walls(cells - 1);
-    const std::vector<Wall> next = cell_walls(cells);
+    const std::vector<Wall> previous = synthetic::serpentine_cell_walls(cells - 1);
+    const std::vector<Wall> next = synthetic::serpentine_cell_walls(cells);
     seen.insert(seen.end(), previous.begin(), previous.begin() + 15);
     seen.insert(seen.end(), next.begin(), next.begin() + 15);
-    const Pose2 x_WL = cell_frame(cells);
-    return lmf::fusion::synthetic::make_snapshot(0, cells, x_WL, lmf::between(x_WL, cell_frame(cells + 1)), seen, {},
-                                                 &rng);
+    return synthetic::serpentine_snapshot(cells, seen, rng);
   }
 };
 

@@ -13,7 +13,6 @@
 // $LMF_BENCH_STATE_DIR (default: a folder under the temp directory), which
 // should be on the disk the server will use.
 #include <chrono>
-#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
@@ -24,7 +23,7 @@
 
 #include <benchmark/benchmark.h>
 
-#include "fusion/synthetic_maps.hpp"
+#include "fusion/serpentine_building.hpp"
 #include "fusion_server/state_store.hpp"
 #include "lmf/fusion/global_map.hpp"
 #include "runtime/convert.hpp"
@@ -32,47 +31,8 @@
 namespace {
 
 namespace fs = std::filesystem;
-using lmf::Pose2;
 using lmf::fusion::GlobalMap;
-using lmf::fusion::synthetic::Wall;
-
-constexpr double kCell = 12.0;
-constexpr int kColumns = 20;
-constexpr int kWallsPerCell = 30;
-
-Pose2 cell_frame(int i) {
-  auto centre = [](int c) {
-    const int row = c / kColumns;
-    const int col = row % 2 == 0 ? c % kColumns : kColumns - 1 - c % kColumns;
-    return Eigen::Vector2d(kCell * col, kCell * row);
-  };
-  const Eigen::Vector2d a = centre(i);
-  const Eigen::Vector2d b = centre(i + 1);
-  return {a.x(), a.y(), std::atan2(b.y() - a.y(), b.x() - a.x())};
-}
-
-std::vector<Wall> cell_walls(int i) {
-  const Pose2 c = cell_frame(i);
-  std::vector<Wall> walls;
-  for (int w = 0; w < kWallsPerCell; ++w) {
-    const double x = -5.0 + 2.0 * (w % 6);
-    const double y = -4.0 + 2.0 * (w / 6);
-    const double phi = (M_PI / 2) * ((w * 7 + i * 3) % 4) - M_PI / 2;
-    walls.push_back({Pose2(c.x + x, c.y + y, lmf::wrap_angle(phi)), 1.2});
-  }
-  return walls;
-}
-
-lmf::LocalMapSnapshot cell_snapshot(int cell, std::mt19937& rng) {
-  std::vector<Wall> seen = cell_walls(cell);
-  if (cell > 0) {
-    const std::vector<Wall> previous = cell_walls(cell - 1);
-    seen.insert(seen.end(), previous.begin(), previous.begin() + 3);
-  }
-  const Pose2 x_WL = cell_frame(cell);
-  return lmf::fusion::synthetic::make_snapshot(0, cell, x_WL, lmf::between(x_WL, cell_frame(cell + 1)), seen, {},
-                                               &rng);
-}
+namespace synthetic = lmf::fusion::synthetic;
 
 struct World {
   GlobalMap map;
@@ -83,7 +43,7 @@ struct World {
 
   void grow_to(int segments) {
     while (map.counts().segments < segments) {
-      const lmf::LocalMapSnapshot s = cell_snapshot(cells, rng);
+      const lmf::LocalMapSnapshot s = synthetic::serpentine_growth_snapshot(cells, rng);
       for (const auto& r : map.fuse(s)) fusions.push_back({r, 0.0});
       book.add(s);
       ++cells;
@@ -170,7 +130,7 @@ BENCHMARK(BM_Recover)->Apply(sizes);
 
 void BM_JournalAppend(benchmark::State& state) {
   std::mt19937 rng(5);
-  const auto msg = lmf::runtime::to_message(cell_snapshot(3, rng));
+  const auto msg = lmf::runtime::to_message(synthetic::serpentine_growth_snapshot(3, rng));
   const std::vector<std::uint8_t> bytes = lmf::runtime::encode_message(msg.value());
   const fs::path dir = bench_dir("journal");
   lmf::server::StateStore store(lmf::server::StateStoreOptions{dir});
