@@ -12,8 +12,8 @@
 //   LocalMapConfig c;                       // defaults
 //   r.read("ship_distance_m", c.ship_distance_m, positive());
 //   if (JsonReader* e = r.optional_section("extraction")) e->read("min_points", c.extraction.min_points);
-//   r.finish();                             // unknown keys, recursively
-//   c.validate();                           // cross-field checks stay in the struct
+//   finish_and_validate(r, c);              // unknown keys (recursively), then the
+//                                           // struct's own cross-field c.validate()
 //
 // Comments (`//`, `/* */`) are allowed in files. Not thread-safe.
 #pragma once
@@ -251,6 +251,18 @@ bool JsonReader::read_choice(const std::string& key, E& value,
     list += std::string("\"") + choice + "\"";
   }
   fail(key, "\"" + name + "\" is not one of " + list);
+}
+
+// The end of every config parse: finish() (unknown keys), then the struct's own
+// cross-field config.validate(), its message prefixed with the reader's source.
+template <typename Config>
+void finish_and_validate(const JsonReader& reader, const Config& config) {
+  reader.finish();
+  try {
+    config.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(reader.source() + ": " + e.what());
+  }
 }
 
 }  // namespace lmf::io

@@ -51,12 +51,7 @@ LocalMapConfig load_local_map_config(const std::filesystem::path& file) {
   io::JsonReader reader = io::JsonReader::from_file(file);
   LocalMapConfig config;
   read_local_map_config(reader, config);
-  reader.finish();
-  try {
-    config.validate();
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(file.string() + ": " + e.what());
-  }
+  io::finish_and_validate(reader, config);
   return config;
 }
 

@@ -41,12 +41,7 @@ MissionConfig read_mission(io::JsonReader& r) {
   if (io::JsonReader* s = r.optional_section("local_map")) read_local_map_config(*s, config.local_map);
   if (io::JsonReader* s = r.optional_section("global_map")) read_config(*s, config.global_map);
   if (io::JsonReader* s = r.optional_section("sighting_noise")) read_config(*s, config.sighting_noise);
-  r.finish();
-  try {
-    config.validate();
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(r.source() + ": " + e.what());
-  }
+  io::finish_and_validate(r, config);
   return config;
 }
 

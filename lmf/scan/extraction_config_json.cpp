@@ -22,12 +22,7 @@ ExtractionConfig load_extraction_config(const std::filesystem::path& file) {
   io::JsonReader reader = io::JsonReader::from_file(file);
   ExtractionConfig config;
   read_extraction_config(reader, config);
-  reader.finish();
-  try {
-    config.validate();
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(file.string() + ": " + e.what());
-  }
+  io::finish_and_validate(reader, config);
   return config;
 }
 
