@@ -250,42 +250,14 @@ void GlobalState::add_to_block(EntityId a, const Eigen::MatrixXd& M) {
   set_block(a, a, block(a, a) + 0.5 * (M + M.transpose()));
 }
 
-Pose2 GlobalState::root_location(EntityId id) const {
-  const Entity* e = &entity(id);
-  Pose2 x = e->location;
-  std::size_t depth = 0;
-  while (e->parent) {
-    e = &entity(*e->parent);
-    x = compose(e->location, x);
-    if (++depth > entities_.size()) {
-      throw std::invalid_argument("GlobalState::root_location: parent cycle through " + id_text(id));
-    }
-  }
-  return x;
-}
+Pose2 GlobalState::root_location(EntityId id) const { return spmap::root_location(*this, id); }
 
 std::vector<spmap::ChainLink> GlobalState::chain_from_root(EntityId id) const {
-  std::vector<spmap::ChainLink> reversed;
-  std::optional<EntityId> current = id;
-  while (current) {
-    const Entity& e = entity(*current);
-    reversed.push_back({e.location, e.kind, false, e.id});
-    if (reversed.size() > entities_.size()) {
-      throw std::invalid_argument("GlobalState::chain_from_root: parent cycle through " + id_text(id));
-    }
-    current = e.parent;
-  }
-  return {reversed.rbegin(), reversed.rend()};
+  return spmap::chain_from_root(*this, id);
 }
 
 std::vector<spmap::ChainLink> GlobalState::chain_between(EntityId a, EntityId b) const {
-  // ⊖(x_1 ⊕ ... ⊕ x_k) = ⊖x_k ⊕ ... ⊕ ⊖x_1.
-  const std::vector<spmap::ChainLink> chain_a = chain_from_root(a);
-  std::vector<spmap::ChainLink> links(chain_a.rbegin(), chain_a.rend());
-  for (spmap::ChainLink& link : links) link.inverted = !link.inverted;
-  const std::vector<spmap::ChainLink> chain_b = chain_from_root(b);
-  links.insert(links.end(), chain_b.begin(), chain_b.end());
-  return links;
+  return spmap::chain_between(*this, a, b);
 }
 
 void GlobalState::replace_perturbation(EntityId target, const std::vector<LinearTerm>& terms) {

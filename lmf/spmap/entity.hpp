@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 
 #include <Eigen/Core>
 
@@ -18,6 +19,17 @@ enum class EntityKind : std::uint8_t {
   kRobot,    // a robot pose (3 dof)
   kFrame,    // a reference frame: local-map frame L_r or submap frame F_i (3 dof)
   kSegment,  // a wall segment (2 dof: lateral, angular)
+};
+
+using EntityId = std::int64_t;  // stable for the life of the map; never reused
+
+struct Entity {
+  EntityId id = 0;
+  EntityKind kind = EntityKind::kSegment;
+  Pose2 location;                   // x̂_PE relative to the parent (or the root)
+  double length_m = 0.0;            // segments only
+  std::optional<EntityId> parent;   // nullopt: relative to the root frame
+  Eigen::Index offset = 0;          // first row of p_E in P
 };
 
 // Size of the perturbation p_E: 3 for robots and frames, 2 for segments.

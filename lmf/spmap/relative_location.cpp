@@ -41,28 +41,12 @@ ChainValue evaluate_chain(const std::vector<ChainLink>& links) {
   return out;
 }
 
-std::vector<ChainLink> chain_from_root(const StochasticMap& map, EntityId id) {
-  std::vector<ChainLink> reversed;
-  std::optional<EntityId> current = id;
-  while (current) {
-    const Entity& e = map.entity(*current);
-    reversed.push_back({e.location, e.kind, false, e.id});
-    if (reversed.size() > map.entities().size()) {
-      throw std::invalid_argument("chain_from_root: parent cycle through entity " + std::to_string(id));
-    }
-    current = e.parent;
-  }
-  return {reversed.rbegin(), reversed.rend()};
+namespace detail {
+
+void throw_parent_cycle(const char* where, EntityId id) {
+  throw std::invalid_argument(std::string(where) + ": parent cycle through entity " + std::to_string(id));
 }
 
-std::vector<ChainLink> chain_between(const StochasticMap& map, EntityId a, EntityId b) {
-  // ⊖(x_1 ⊕ ... ⊕ x_k) = ⊖x_k ⊕ ... ⊕ ⊖x_1.
-  const std::vector<ChainLink> chain_a = chain_from_root(map, a);
-  std::vector<ChainLink> links(chain_a.rbegin(), chain_a.rend());
-  for (ChainLink& link : links) link.inverted = !link.inverted;
-  const std::vector<ChainLink> chain_b = chain_from_root(map, b);
-  links.insert(links.end(), chain_b.begin(), chain_b.end());
-  return links;
-}
+}  // namespace detail
 
 }  // namespace lmf::spmap

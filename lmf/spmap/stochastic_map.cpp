@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "lmf/spmap/relative_location.hpp"
+
 namespace lmf::spmap {
 namespace {
 
@@ -111,19 +113,7 @@ void StochasticMap::reserve(Eigen::Index dimension) {
   P_.swap(grown);
 }
 
-Pose2 StochasticMap::root_location(EntityId id) const {
-  const Entity* e = &entity(id);
-  Pose2 x = e->location;
-  std::size_t depth = 0;
-  while (e->parent) {
-    e = &entity(*e->parent);
-    x = compose(e->location, x);
-    if (++depth > entities_.size()) {
-      throw std::invalid_argument("StochasticMap::root_location: parent cycle through " + id_text(id));
-    }
-  }
-  return x;
-}
+Pose2 StochasticMap::root_location(EntityId id) const { return spmap::root_location(*this, id); }
 
 void StochasticMap::replace_perturbation(EntityId target, const std::vector<LinearTerm>& terms) {
   const Entity& t = entity(target);

@@ -22,17 +22,6 @@
 
 namespace lmf::spmap {
 
-using EntityId = std::int64_t;  // stable for the life of the map; never reused
-
-struct Entity {
-  EntityId id = 0;
-  EntityKind kind = EntityKind::kSegment;
-  Pose2 location;                   // x̂_PE relative to the parent (or the root)
-  double length_m = 0.0;            // segments only
-  std::optional<EntityId> parent;   // nullopt: relative to the root frame
-  Eigen::Index offset = 0;          // first row of p_E in P
-};
-
 class StochasticMap {
  public:
   // Views of the n x n covariance P (n = dimension()) inside the spare-capacity
