@@ -4,7 +4,6 @@
 // optionally, the reference path aligned at the first scan (L = its pose).
 #include <algorithm>
 #include <cmath>
-#include <exception>
 #include <iostream>
 #include <numbers>
 #include <optional>
@@ -17,9 +16,9 @@
 
 #include "lmf/io/carmen.hpp"
 #include "lmf/io/svg.hpp"
-#include "lmf/io/trajectory.hpp"
 #include "lmf/local_map/local_map.hpp"
 #include "lmf/local_map/local_map_config_json.hpp"
+#include "tools/tool_support.hpp"
 
 namespace po = boost::program_options;
 
@@ -43,22 +42,9 @@ void draw_segments(const lmf::LocalMap& lm, lmf::io::SvgDocument& svg) {
     const Eigen::MatrixXd P = lm.map().block(id, id);
     const Eigen::Vector2d d(std::cos(s.location.phi), std::sin(s.location.phi));
     const Eigen::Vector2d n(-d.y(), d.x());  // the side the robot saw it from
-    std::vector<Eigen::Vector2d> left;
-    std::vector<Eigen::Vector2d> right;
-    for (int k = 0; k <= 8; ++k) {
-      // Lateral error of the point at x along the segment: p_y + x p_phi.
-      const double x = s.length_m * (k / 8.0 - 0.5);
-      const double var = P(0, 0) + 2.0 * x * P(0, 1) + x * x * P(1, 1);
-      const double w = 2.0 * std::sqrt(std::max(var, 0.0));
-      const Eigen::Vector2d p = s.location.transform_point({x, 0.0});
-      left.push_back(p + w * n);
-      right.push_back(p - w * n);
-    }
-    lmf::io::SvgStyle band;
-    band.stroke = "none";
-    band.fill = "#d62728";
-    band.fill_opacity = 0.3;
-    svg.add_band(left, right, band);
+    std::vector<double> along_m;
+    for (int k = 0; k <= 8; ++k) along_m.push_back(s.length_m * (k / 8.0 - 0.5));
+    lmf::tools::add_segment_band(svg, s.location, P.topLeftCorner<2, 2>(), along_m, 0.3);
     lmf::io::SvgStyle line;
     line.stroke = "#d62728";
     line.stroke_width_px = 2.0;
@@ -89,20 +75,10 @@ int run(const Options& o) {
                                                      : lmf::load_local_map_config(o.config_file);
   if (o.no_constraints) config.constraints_enabled = false;
   const lmf::io::CarmenLog log = lmf::io::read_carmen_log(o.log_file);
-  if (o.first >= log.scans.size()) {
-    std::cerr << "lmf-local-map-svg: --first " << o.first << " is out of range: " << o.log_file << " has "
-              << log.scans.size() << " scans\n";
-    return 1;
-  }
-  std::vector<lmf::StampedPose> reference;
-  if (!o.reference_file.empty()) {
-    reference = lmf::io::read_trajectory(o.reference_file);
-    if (reference.size() != log.scans.size()) {
-      std::cerr << "lmf-local-map-svg: " << o.reference_file << " has " << reference.size()
-                << " poses, the log has " << log.scans.size() << " scans (one per scan expected)\n";
-      return 1;
-    }
-  }
+  lmf::tools::check_scan_index("--first", o.first, log.scans.size(), o.log_file);
+  const std::vector<lmf::StampedPose> reference =
+      o.reference_file.empty() ? std::vector<lmf::StampedPose>{}
+                               : lmf::tools::read_reference_per_scan(o.reference_file, log.scans.size());
   const std::size_t end = o.scans == 0 ? log.scans.size() : std::min(log.scans.size(), o.first + o.scans);
 
   lmf::LocalMap lm(config);
@@ -126,8 +102,7 @@ int run(const Options& o) {
   dot.fill = "#7f7f7f";
   const lmf::Pose2 x_LR = lm.x_LR();
   for (std::size_t i = 0; i < last.ranges_m.size(); ++i) {
-    const double r = last.ranges_m[i];
-    if (!std::isfinite(r) || r <= 0.0 || r >= last.max_range_m - 0.1) continue;
+    if (!lmf::tools::is_drawn_return(last, i)) continue;
     svg.add_dot(x_LR.transform_point(last.beam_point(i)), 1.0, dot);
   }
   svg.end_group();
@@ -157,10 +132,7 @@ int run(const Options& o) {
   ellipse.fill_opacity = 0.2;
   svg.add_ellipse({x_LR.x, x_LR.y}, std::max(axes(1), 1e-3), std::max(axes(0), 1e-3),
                   std::atan2(major.y(), major.x()), ellipse);
-  lmf::io::SvgStyle heading;
-  heading.stroke = "black";
-  heading.stroke_width_px = 2.0;
-  svg.add_line({x_LR.x, x_LR.y}, x_LR.transform_point({0.4, 0.0}), heading);
+  lmf::tools::add_heading_line(svg, x_LR, 0.4);
   svg.end_group();
   svg.add_scale_bar();
   svg.write(o.out_file);
@@ -195,23 +167,11 @@ int main(int argc, char** argv) {
       "gt", po::value(&o.reference_file), "reference trajectory, one `index t x y theta` line per scan (.gt)")(
       "out", po::value(&o.out_file)->required(), "output SVG file")(
       "scale", po::value(&o.pixels_per_metre)->default_value(30.0), "pixels per metre");
-  try {
-    po::variables_map vm;
-    po::store(po::parse_command_line(argc, argv, options), vm);
-    if (vm.count("help") != 0u) {
-      std::cout << options << "\n";
-      return 0;
-    }
-    po::notify(vm);
+  const auto check = [&] {
     if (!(o.pixels_per_metre > 0.0)) throw po::error("--scale must be > 0");
-  } catch (const po::error& e) {
-    std::cerr << "lmf-local-map-svg: " << e.what() << "\nTry lmf-local-map-svg --help\n";
-    return 2;
+  };
+  if (const auto exit_code = lmf::tools::parse_command_line(argc, argv, options, "lmf-local-map-svg", check)) {
+    return *exit_code;
   }
-  try {
-    return run(o);
-  } catch (const std::exception& e) {
-    std::cerr << "lmf-local-map-svg: " << e.what() << "\n";
-    return 1;
-  }
+  return lmf::tools::run_reporting_errors("lmf-local-map-svg", [&] { return run(o); });
 }

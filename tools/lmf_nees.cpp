@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <exception>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
@@ -22,6 +21,7 @@
 #include "lmf/local_map/local_map.hpp"
 #include "lmf/local_map/local_map_config_json.hpp"
 #include "lmf/sim/mission.hpp"
+#include "tools/tool_support.hpp"
 
 namespace po = boost::program_options;
 
@@ -197,25 +197,11 @@ int main(int argc, char** argv) {
       "check-interval", po::value(&o.check_interval)->default_value(25),
       "scans between covariance checks (0: never)")(
       "csv", po::value(&o.csv_file), "also write the table as CSV to this file");
-  try {
-    po::variables_map vm;
-    po::store(po::parse_command_line(argc, argv, options), vm);
-    if (vm.count("help") != 0u) {
-      std::cout << options << "\n";
-      return 0;
-    }
-    po::notify(vm);
+  const auto check = [&] {
     if (o.runs < 1) throw po::error("--runs must be >= 1");
     if (!(o.duration_s > 0.0)) throw po::error("--duration must be > 0");
     if (!(o.bucket_s > 0.0)) throw po::error("--bucket must be > 0");
-  } catch (const po::error& e) {
-    std::cerr << "lmf-nees: " << e.what() << "\nTry lmf-nees --help\n";
-    return 2;
-  }
-  try {
-    return run(o);
-  } catch (const std::exception& e) {
-    std::cerr << "lmf-nees: " << e.what() << "\n";
-    return 1;
-  }
+  };
+  if (const auto exit_code = lmf::tools::parse_command_line(argc, argv, options, "lmf-nees", check)) return *exit_code;
+  return lmf::tools::run_reporting_errors("lmf-nees", [&] { return run(o); });
 }

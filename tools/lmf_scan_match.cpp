@@ -7,7 +7,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <exception>
 #include <iostream>
 #include <numbers>
 #include <string>
@@ -18,10 +17,10 @@
 #include <boost/program_options.hpp>
 
 #include "lmf/io/carmen.hpp"
-#include "lmf/io/trajectory.hpp"
 #include "lmf/local_map/local_map_config_json.hpp"
 #include "lmf/local_map/local_map_measurements.hpp"
 #include "lmf/scan/scan_matcher.hpp"
+#include "tools/tool_support.hpp"
 
 namespace po = boost::program_options;
 
@@ -68,91 +67,80 @@ void print(const char* name, const Errors& e, double chi2_95) {
               e.nees.empty() ? 0.0 : 100.0 * static_cast<double>(inside) / static_cast<double>(e.nees.size()));
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+struct Options {
   std::string log_file;
   std::string reference_file;
   std::string config_file;
   bool per_scan = false;
+};
+
+int run(const Options& o) {
+  lmf::LocalMapConfig config =
+      o.config_file.empty() ? lmf::LocalMapConfig{} : lmf::load_local_map_config(o.config_file);
+  config.scan_matching.enabled = true;
+  const lmf::ScanMatcherConfig& matching = config.scan_matching;
+  const lmf::io::CarmenLog log = lmf::io::read_carmen_log(o.log_file);
+  const std::vector<lmf::StampedPose> reference =
+      lmf::tools::read_reference_per_scan(o.reference_file, log.scans.size());
+  Errors odometry;
+  Errors matched;
+  Errors odometry_where_matched;
+  std::vector<double> micros;
+  int failed = 0;
+  for (std::size_t k = 1; k < log.scans.size(); ++k) {
+    const lmf::LaserScan& a = log.scans[k - 1];
+    const lmf::LaserScan& b = log.scans[k];
+    const lmf::Pose2 u = lmf::between(a.odometry, b.odometry);
+    const Eigen::Matrix3d Q = lmf::local_map::odometry_noise(u, config);
+    const lmf::Pose2 truth = lmf::between(reference[k - 1].pose, reference[k].pose);
+    odometry.add(u, Q, truth);
+    const auto t0 = std::chrono::steady_clock::now();
+    const lmf::ReferenceScan A = lmf::ReferenceScan::from(a, matching);
+    const std::optional<lmf::ScanMatch> m = lmf::match_scans(A, lmf::scan_points(b, matching), u, Q, matching);
+    micros.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+    if (!m) {
+      ++failed;
+      continue;
+    }
+    matched.add(m->x_AB, m->covariance, truth);
+    odometry_where_matched.add(u, Q, truth);
+    if (o.per_scan) {
+      std::printf("%4zu  odometry %.3f m %.2f deg  match %.3f m %.2f deg  NEES %.1f  points %d  rms %.3f m  iterations %d\n", k,
+                  odometry.translation_m.back(), odometry.rotation_rad.back() * 180.0 / std::numbers::pi,
+                  matched.translation_m.back(), matched.rotation_rad.back() * 180.0 / std::numbers::pi,
+                  matched.nees.back(), m->correspondences, m->rms_m, m->iterations);
+    }
+  }
+  const double chi2_95 = boost::math::quantile(boost::math::chi_squared_distribution<double>(3.0), 0.95);
+  std::printf("%s: %zu increments, %zu matched, %d fell back to odometry\n", o.log_file.c_str(),
+              log.scans.size() - 1, matched.nees.size(), failed);
+  std::printf("%-9s %6s  %8s  %8s  %9s  %9s  %8s\n", "", "n", "RMS m", "RMS deg", "NEES mean", "NEES p50",
+              "<= 95%");
+  print("odometry", odometry, chi2_95);
+  print("  (same)", odometry_where_matched, chi2_95);
+  print("match", matched, chi2_95);
+  std::printf("time per match (reference preparation + matching): p50 %.0f us, p99 %.0f us, max %.0f us\n",
+              quantile(micros, 0.5), quantile(micros, 0.99), quantile(micros, 1.0));
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
   po::options_description options(
       "lmf-scan-match: match every scan of a CARMEN log against the previous one (the local map's\n"
       "step 1 with local_map.scan_matching, odometry increment as prior) and score the increments of\n"
       "the odometry and of the matches against the reference: RMS errors, NEES (3 when the\n"
       "covariance is right) and the share inside its 95 % bound, and the time per match.\nOptions");
   options.add_options()("help,h", "print this help")(
-      "log", po::value(&log_file)->required(), "CARMEN log (plain or .gz)")(
-      "gt", po::value(&reference_file)->required(), "reference trajectory, one `index t x y theta` line per scan")(
-      "config", po::value(&config_file),
+      "log", po::value(&o.log_file)->required(), "CARMEN log (plain or .gz)")(
+      "gt", po::value(&o.reference_file)->required(), "reference trajectory, one `index t x y theta` line per scan")(
+      "config", po::value(&o.config_file),
       "JSON LocalMapConfig (odometry noise and the scan_matching section; matching is on regardless)")(
-      "per-scan", po::bool_switch(&per_scan),
+      "per-scan", po::bool_switch(&o.per_scan),
       "one line per increment: k, odometry and match errors (m, deg), match NEES, matched points, RMS (m),\n"
       "Gauss-Newton iterations");
-  try {
-    po::variables_map vm;
-    po::store(po::parse_command_line(argc, argv, options), vm);
-    if (vm.count("help") != 0u) {
-      std::cout << options << "\n";
-      return 0;
-    }
-    po::notify(vm);
-  } catch (const po::error& e) {
-    std::cerr << "lmf-scan-match: " << e.what() << "\nTry lmf-scan-match --help\n";
-    return 2;
-  }
-  try {
-    lmf::LocalMapConfig config = config_file.empty() ? lmf::LocalMapConfig{} : lmf::load_local_map_config(config_file);
-    config.scan_matching.enabled = true;
-    const lmf::ScanMatcherConfig& matching = config.scan_matching;
-    const lmf::io::CarmenLog log = lmf::io::read_carmen_log(log_file);
-    const std::vector<lmf::StampedPose> reference = lmf::io::read_trajectory(reference_file);
-    if (reference.size() != log.scans.size()) {
-      std::cerr << "lmf-scan-match: " << reference_file << " has " << reference.size() << " poses, the log has "
-                << log.scans.size() << " scans (one per scan expected)\n";
-      return 1;
-    }
-    Errors odometry;
-    Errors matched;
-    Errors odometry_where_matched;
-    std::vector<double> micros;
-    int failed = 0;
-    for (std::size_t k = 1; k < log.scans.size(); ++k) {
-      const lmf::LaserScan& a = log.scans[k - 1];
-      const lmf::LaserScan& b = log.scans[k];
-      const lmf::Pose2 u = lmf::between(a.odometry, b.odometry);
-      const Eigen::Matrix3d Q = lmf::local_map::odometry_noise(u, config);
-      const lmf::Pose2 truth = lmf::between(reference[k - 1].pose, reference[k].pose);
-      odometry.add(u, Q, truth);
-      const auto t0 = std::chrono::steady_clock::now();
-      const lmf::ReferenceScan A = lmf::ReferenceScan::from(a, matching);
-      const std::optional<lmf::ScanMatch> m = lmf::match_scans(A, lmf::scan_points(b, matching), u, Q, matching);
-      micros.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
-      if (!m) {
-        ++failed;
-        continue;
-      }
-      matched.add(m->x_AB, m->covariance, truth);
-      odometry_where_matched.add(u, Q, truth);
-      if (per_scan) {
-        std::printf("%4zu  odometry %.3f m %.2f deg  match %.3f m %.2f deg  NEES %.1f  points %d  rms %.3f m  iterations %d\n", k,
-                    odometry.translation_m.back(), odometry.rotation_rad.back() * 180.0 / std::numbers::pi,
-                    matched.translation_m.back(), matched.rotation_rad.back() * 180.0 / std::numbers::pi,
-                    matched.nees.back(), m->correspondences, m->rms_m, m->iterations);
-      }
-    }
-    const double chi2_95 = boost::math::quantile(boost::math::chi_squared_distribution<double>(3.0), 0.95);
-    std::printf("%s: %zu increments, %zu matched, %d fell back to odometry\n", log_file.c_str(),
-                log.scans.size() - 1, matched.nees.size(), failed);
-    std::printf("%-9s %6s  %8s  %8s  %9s  %9s  %8s\n", "", "n", "RMS m", "RMS deg", "NEES mean", "NEES p50",
-                "<= 95%");
-    print("odometry", odometry, chi2_95);
-    print("  (same)", odometry_where_matched, chi2_95);
-    print("match", matched, chi2_95);
-    std::printf("time per match (reference preparation + matching): p50 %.0f us, p99 %.0f us, max %.0f us\n",
-                quantile(micros, 0.5), quantile(micros, 0.99), quantile(micros, 1.0));
-  } catch (const std::exception& e) {
-    std::cerr << "lmf-scan-match: " << e.what() << "\n";
-    return 1;
-  }
-  return 0;
+  if (const auto exit_code = lmf::tools::parse_command_line(argc, argv, options, "lmf-scan-match")) return *exit_code;
+  return lmf::tools::run_reporting_errors("lmf-scan-match", [&] { return run(o); });
 }
