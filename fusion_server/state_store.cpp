@@ -16,17 +16,17 @@
 #include <thread>
 #include <utility>
 
-#include <zlib.h>
 
 #include "lmf/fusion/global_map_archive.hpp"
+#include "lmf/io/binary_archive.hpp"
 
 namespace lmf::server {
 namespace {
 
 namespace fs = std::filesystem;
 using fusion::ArchiveError;
-using fusion::ArchiveReader;
-using fusion::ArchiveWriter;
+using io::ArchiveReader;
+using io::ArchiveWriter;
 using Clock = std::chrono::steady_clock;
 
 constexpr std::string_view kStateMagic("LMFSTATE", 8);
@@ -40,10 +40,6 @@ constexpr const char* kSnapshotTmp = "snapshot.tmp";
 
 std::string errno_text(const std::string& what, const fs::path& path) {
   return what + " " + path.string() + ": " + std::strerror(errno);
-}
-
-std::uint32_t crc(std::uint32_t c, const void* data, std::size_t size) {
-  return static_cast<std::uint32_t>(crc32(c, static_cast<const Bytef*>(data), static_cast<uInt>(size)));
 }
 
 void put_be(std::string& out, std::uint64_t v, int bytes) {
@@ -187,9 +183,9 @@ ParsedJournal parse_journal(const std::string& bytes) {
     const char* channel = p + kRecordHeader;
     const char* data = channel + channel_len;
     const std::size_t message_len = data_len - 4;
-    std::uint32_t c = crc(0, p + 4, 16);
-    c = crc(c, channel, channel_len);
-    c = crc(c, data, message_len);
+    std::uint32_t c = io::crc32_update(0, p + 4, 16);
+    c = io::crc32_update(c, channel, channel_len);
+    c = io::crc32_update(c, data, message_len);
     if (c != get_be(data + message_len, 4)) {
       out.problem = "checksum mismatch in record lsn " + std::to_string(lsn);
       break;
@@ -340,7 +336,7 @@ Recovery StateStore::recover() {
       std::ifstream in(path, std::ios::binary);
       if (!in) throw ArchiveError("cannot open");
       std::uint32_t version = 0;
-      const std::string payload = fusion::read_framed(in, kStateMagic, kStateVersion, version);
+      const std::string payload = io::read_framed(in, kStateMagic, kStateVersion, version);
       if (payload.size() < 8) throw ArchiveError("no lsn");
       std::uint64_t lsn = 0;
       std::memcpy(&lsn, payload.data(), sizeof lsn);
@@ -488,7 +484,7 @@ void StateStore::write_snapshot_file(std::int64_t lsn, const std::string& payloa
   ArchiveWriter w(framed_payload);
   w.u64(static_cast<std::uint64_t>(lsn));
   std::ostringstream framed;
-  fusion::write_framed(framed, kStateMagic, kStateVersion, framed_payload + payload);
+  io::write_framed(framed, kStateMagic, kStateVersion, framed_payload + payload);
   const std::string bytes = framed.str();
 
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
@@ -629,9 +625,9 @@ std::int64_t StateStore::append(const std::string& channel, const void* data, st
   put_be(record, size + 4, 4);
   record += channel;
   record.append(static_cast<const char*>(data), size);
-  std::uint32_t c = crc(0, record.data() + 4, 16);
-  c = crc(c, channel.data(), channel.size());
-  c = crc(c, data, size);
+  std::uint32_t c = io::crc32_update(0, record.data() + 4, 16);
+  c = io::crc32_update(c, channel.data(), channel.size());
+  c = io::crc32_update(c, data, size);
   put_be(record, c, 4);
   const fs::path path = options_.dir / journal_name(journal_first_lsn_);
   try {

@@ -12,13 +12,8 @@
 // columns sit at the same strides as before (Eigen's kernels then see the same
 // memory layout).
 //
-// File layout (all integers and doubles little-endian, the host order checked
-// at compile time):
-//   magic      8 bytes   "LMFGMAP\0" (a framed archive of another kind has another magic)
-//   version    u32       kGlobalMapArchiveVersion
-//   length     u64       payload bytes
-//   payload    length bytes
-//   crc32      u32       zlib CRC-32 of magic, version, length and payload
+// File layout: the frame of lmf/io/binary_archive.hpp, magic "LMFGMAP\0",
+// version kGlobalMapArchiveVersion.
 // The payload is a sequence of fixed-size fields and counted arrays in the
 // order of write_global_map() (global_map_archive.cpp documents it field by
 // field). A version this build does not know, a wrong magic, a short file, a
@@ -40,6 +35,7 @@
 
 #include "lmf/fusion/global_map.hpp"
 #include "lmf/geometry/pose2.hpp"
+#include "lmf/io/binary_archive.hpp"
 #include "lmf/local_map/local_map_snapshot.hpp"
 
 namespace lmf::fusion {
@@ -49,73 +45,13 @@ namespace lmf::fusion {
 // segments (GlobalMapConfig::crossing_*, FusionReport::crossing_segments_removed).
 inline constexpr std::uint32_t kGlobalMapArchiveVersion = 4;
 
-// A bad, short, corrupt or unknown-version archive (what and where).
-class ArchiveError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
-
-// Appends fields to a byte string (little-endian, doubles bit-exact).
-class ArchiveWriter {
- public:
-  explicit ArchiveWriter(std::string& out) : out_(out) {}
-  void u8(std::uint8_t v) { out_.push_back(static_cast<char>(v)); }
-  void boolean(bool v) { u8(v ? 1 : 0); }
-  void u32(std::uint32_t v) { raw(&v, sizeof v); }
-  void i32(std::int32_t v) { raw(&v, sizeof v); }
-  void u64(std::uint64_t v) { raw(&v, sizeof v); }
-  void i64(std::int64_t v) { raw(&v, sizeof v); }
-  void f64(double v) { raw(&v, sizeof v); }
-  void count(std::size_t n) { u64(n); }
-  void pose(const Pose2& p);
-  void matrix(const Eigen::MatrixXd& m);  // rows, cols, column-major values
-  void matrix3(const Eigen::Matrix3d& m);
-  void text(std::string_view s);          // length, bytes
-  void raw(const void* data, std::size_t size);
-
- private:
-  std::string& out_;
-};
-
-// Reads fields back; every read checks the remaining size and throws
-// ArchiveError("<context>: truncated ...") instead of reading past the end.
-class ArchiveReader {
- public:
-  ArchiveReader(const char* data, std::size_t size, std::string context);
-  std::uint8_t u8();
-  bool boolean();  // 0 or 1, anything else is corrupt
-  std::uint32_t u32();
-  std::int32_t i32();
-  std::uint64_t u64();
-  std::int64_t i64();
-  double f64();
-  // An array count whose elements take at least `min_element_bytes` each: a
-  // count larger than the remaining bytes allow is corrupt (never allocated).
-  std::size_t count(std::size_t min_element_bytes);
-  Pose2 pose();
-  Eigen::MatrixXd matrix();
-  Eigen::Matrix3d matrix3();
-  std::string text();
-  void raw(void* data, std::size_t size);
-  std::size_t remaining() const { return size_ - pos_; }
-  [[noreturn]] void fail(const std::string& what) const;
-
- private:
-  const char* data_;
-  std::size_t size_;
-  std::size_t pos_ = 0;
-  std::string context_;
-};
-
-// The frame around a payload (see the layout above): magic (exactly 8 chars),
-// version, length, payload, CRC-32.
-void write_framed(std::ostream& out, std::string_view magic, std::uint32_t version, std::string_view payload);
-// Reads one framed archive; returns its payload and sets `version`. Throws
-// ArchiveError for a wrong magic, a version other than `this_version` (older
-// archives are not converted: refused by name rather than misread), a length
-// above `max_length`, a short stream or a checksum mismatch.
-std::string read_framed(std::istream& in, std::string_view magic, std::uint32_t this_version, std::uint32_t& version,
-                        std::uint64_t max_length = std::uint64_t{1} << 40);
+// The binary archive primitives (lmf/io/binary_archive.hpp), under the names
+// the map's archive has always used.
+using io::ArchiveError;
+using io::ArchiveReader;
+using io::ArchiveWriter;
+using io::read_framed;
+using io::write_framed;
 
 // The whole map as a framed archive (magic "LMFGMAP\0").
 void write_archive(const GlobalMap& map, std::ostream& out);
