@@ -19,6 +19,7 @@
 
 #include "lmf/fusion/global_map_archive.hpp"
 #include "lmf/io/binary_archive.hpp"
+#include "lmf/io/durable_file.hpp"
 
 namespace lmf::server {
 namespace {
@@ -74,24 +75,18 @@ std::map<std::int64_t, fs::path> journal_files(const fs::path& dir) {
   return out;
 }
 
-void write_all(int fd, const char* data, std::size_t size, const fs::path& path) {
-  while (size > 0) {
-    const ssize_t n = ::write(fd, data, size);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      throw StateError(errno_text("cannot write", path));
-    }
-    data += n;
-    size -= static_cast<std::size_t>(n);
+// The durable-file primitives (lmf/io/durable_file.hpp), their errors as the store's.
+template <typename Action>
+void as_state_error(Action&& action) {
+  try {
+    action();
+  } catch (const io::FileError& e) {
+    throw StateError(e.what());
   }
 }
 
 void sync_dir(const fs::path& dir) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
-  if (fd < 0) throw StateError(errno_text("cannot open", dir));
-  const int rc = ::fsync(fd);
-  ::close(fd);
-  if (rc != 0) throw StateError(errno_text("cannot fsync", dir));
+  as_state_error([&] { io::sync_directory(dir); });
 }
 
 std::string read_file(const fs::path& path) {
@@ -487,16 +482,7 @@ void StateStore::write_snapshot_file(std::int64_t lsn, const std::string& payloa
   io::write_framed(framed, kStateMagic, kStateVersion, framed_payload + payload);
   const std::string bytes = framed.str();
 
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw StateError(errno_text("cannot create", tmp));
-  try {
-    write_all(fd, bytes.data(), bytes.size(), tmp);
-    if (::fsync(fd) != 0) throw StateError(errno_text("cannot fsync", tmp));
-  } catch (...) {
-    ::close(fd);
-    throw;
-  }
-  ::close(fd);
+  as_state_error([&] { io::write_file_synced(tmp, bytes); });
 
   bool pause = false;
   {
@@ -631,7 +617,7 @@ std::int64_t StateStore::append(const std::string& channel, const void* data, st
   put_be(record, c, 4);
   const fs::path path = options_.dir / journal_name(journal_first_lsn_);
   try {
-    write_all(journal_fd_, record.data(), record.size(), path);
+    as_state_error([&] { io::write_all(journal_fd_, record, path); });
     if (::fdatasync(journal_fd_) != 0) throw StateError(errno_text("cannot fdatasync", path));
   } catch (...) {
     // Undo a partial record so later ones are not written after garbage.

@@ -1,9 +1,5 @@
 #include "robot_agent/agent_state.hpp"
 
-#include <fcntl.h>
-#include <unistd.h>
-
-#include <cerrno>
 #include <cmath>
 #include <fstream>
 #include <iterator>
@@ -14,6 +10,7 @@
 #include <utility>
 
 #include "lmf/io/binary_archive.hpp"
+#include "lmf/io/durable_file.hpp"
 #include "runtime/convert.hpp"
 
 namespace lmf::robot_agent {
@@ -122,16 +119,6 @@ AgentState read_payload(io::ArchiveReader& r) {
   return s;
 }
 
-std::string system_error_text(int error) { return std::generic_category().message(error); }
-
-// Closes a file descriptor on scope exit.
-struct Fd {
-  int fd = -1;
-  ~Fd() {
-    if (fd >= 0) ::close(fd);
-  }
-};
-
 }  // namespace
 
 std::filesystem::path agent_state_file(const std::filesystem::path& dir, int robot_id) {
@@ -190,31 +177,11 @@ AgentState decode_agent_state(const std::vector<std::uint8_t>& bytes) {
 
 void save_agent_state(const std::filesystem::path& file, const AgentState& state) {
   const std::vector<std::uint8_t> bytes = encode_agent_state(state);
-  const std::filesystem::path temp = file.string() + ".tmp";
-  const auto fail = [&](const std::string& what, const std::filesystem::path& path) {
-    throw AgentStateError("cannot " + what + " " + path.string() + ": " + system_error_text(errno));
-  };
-  {
-    Fd out{::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644)};
-    if (out.fd < 0) fail("create", temp);
-    std::size_t done = 0;
-    while (done < bytes.size()) {
-      const ssize_t n = ::write(out.fd, bytes.data() + done, bytes.size() - done);
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) fail("write", temp);
-      done += static_cast<std::size_t>(n);
-    }
-    if (::fsync(out.fd) != 0) fail("fsync", temp);
-    const int fd = out.fd;
-    out.fd = -1;
-    if (::close(fd) != 0) fail("close", temp);
+  try {
+    io::replace_file_durably(file, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+  } catch (const io::FileError& e) {
+    throw AgentStateError(e.what());
   }
-  if (::rename(temp.c_str(), file.c_str()) != 0) fail("rename onto", file);
-  // The rename is durable once the folder's entry is.
-  const std::filesystem::path dir = file.has_parent_path() ? file.parent_path() : std::filesystem::path(".");
-  Fd folder{::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC)};
-  if (folder.fd < 0) fail("open folder", dir);
-  if (::fsync(folder.fd) != 0) fail("fsync folder", dir);
 }
 
 std::optional<AgentState> load_agent_state(const std::filesystem::path& file) {
