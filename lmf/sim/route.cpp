@@ -99,14 +99,18 @@ void Trajectory::add_rotation(double turn_rad, double rate_radps) {
   end_t_ = p.t1;
 }
 
-Pose2 Trajectory::pose_at(double t_s) const {
-  if (pieces_.empty()) return {start_.x, start_.y, wrap_angle(start_.phi)};
+std::pair<const Trajectory::Piece*, double> Trajectory::piece_at(double t_s) const {
   const double t = std::clamp(t_s, 0.0, duration_s());
   auto it = std::upper_bound(pieces_.begin(), pieces_.end(), t,
                              [](double value, const Piece& piece) { return value < piece.t1; });
   if (it == pieces_.end()) it = std::prev(pieces_.end());
-  const Piece& p = *it;
-  const double dt = t - p.t0;
+  return {&*it, t - it->t0};
+}
+
+Pose2 Trajectory::pose_at(double t_s) const {
+  if (pieces_.empty()) return {start_.x, start_.y, wrap_angle(start_.phi)};
+  const auto [piece, dt] = piece_at(t_s);
+  const Piece& p = *piece;
   switch (p.kind) {
     case Kind::kLine: {
       const Eigen::Vector2d q = p.p0 + p.rate * dt * unit(p.heading0);
@@ -126,12 +130,8 @@ Pose2 Trajectory::pose_at(double t_s) const {
 
 double Trajectory::distance_at(double t_s) const {
   if (pieces_.empty()) return 0.0;
-  const double t = std::clamp(t_s, 0.0, duration_s());
-  auto it = std::upper_bound(pieces_.begin(), pieces_.end(), t,
-                             [](double value, const Piece& piece) { return value < piece.t1; });
-  if (it == pieces_.end()) it = std::prev(pieces_.end());
-  const Piece& p = *it;
-  const double dt = t - p.t0;
+  const auto [piece, dt] = piece_at(t_s);
+  const Piece& p = *piece;
   if (p.kind == Kind::kLine) return p.s0 + p.rate * dt;
   if (p.kind == Kind::kArc) return p.s0 + p.radius * std::abs(p.rate) * dt;
   return p.s0;

@@ -9,6 +9,7 @@
 // rotation_speed_radps where the robot turns back. All poses are x_WR (world frame).
 #pragma once
 
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -64,6 +65,9 @@ class Trajectory {
 
  private:
   void require_started(const char* what) const;
+  // The piece driven at time t (clamped to [0, duration_s()]; pieces_ not
+  // empty) and the time since it began.
+  std::pair<const Piece*, double> piece_at(double t_s) const;
 
   std::vector<Piece> pieces_;
   Pose2 start_;
