@@ -29,6 +29,7 @@
 #include "fusion_server/server_node.hpp"
 #include "lmf/geometry/pose2.hpp"
 #include "mutator.hpp"
+#include "processes/server_test_support.hpp"
 #include "runtime/bus.hpp"
 #include "runtime/channels.hpp"
 #include "runtime/convert.hpp"
@@ -41,71 +42,17 @@ using namespace std::chrono_literals;
 using lmf::LocalMapSnapshot;
 using lmf::Pose2;
 using lmf::fuzz::Bytes;
+using lmf::testing::make_sighting;
+using lmf::testing::reject_count;
+using lmf::testing::reject_total;
+using lmf::testing::room_local_map;
+using lmf::testing::to_msg;
 
 constexpr int kMaxRobots = 4;
 constexpr int kMaxSegments = 8;  // DecodeLimits of the test server: 9 segments are oversized
 
-// Local map `seq` of a robot whose local frames advance 1 m along x from
-// x_WL0, seeing the walls of a 10 m x 6 m room exactly; a PSD covariance
-// with the segments sharing the robot's heading error.
-LocalMapSnapshot make_map(int robot_id, std::int64_t seq, std::size_t walls = 5, const Pose2& x_WL0 = Pose2()) {
-  const double pi = 3.14159265358979323846;
-  const std::vector<std::pair<Pose2, double>> room = {
-      {Pose2(4.0, -3.0, 0.0), 10.0},   {Pose2(9.0, 0.0, pi / 2), 6.0},  {Pose2(4.0, 3.0, pi), 10.0},
-      {Pose2(-1.0, 0.0, -pi / 2), 6.0}, {Pose2(2.0, -1.5, pi / 2), 1.0}, {Pose2(6.0, 1.5, -pi / 2), 1.0},
-      {Pose2(3.0, 1.0, 0.0), 0.8},      {Pose2(5.0, -1.0, pi), 0.8},     {Pose2(7.0, 2.0, pi / 2), 0.5}};
-  const Pose2 step(1.0, 0.0, 0.0);
-  Pose2 x_WL = x_WL0;
-  for (std::int64_t k = 0; k < seq; ++k) x_WL = lmf::compose(x_WL, step);
-  LocalMapSnapshot s;
-  s.robot_id = robot_id;
-  s.seq = seq;
-  s.first_utime = 1'000'000 + seq * 1'000'000;
-  s.last_utime = s.first_utime + 800'000;
-  s.x_LR = step;
-  for (std::size_t i = 0; i < walls; ++i) s.segments.push_back({lmf::between(x_WL, room[i].first), room[i].second});
-  const auto n = static_cast<Eigen::Index>(3 + 2 * walls);
-  s.covariance = Eigen::MatrixXd::Zero(n, n);
-  s.covariance.diagonal().head(3) << 1e-3, 1e-3, 1e-4;
-  for (Eigen::Index i = 3; i < n; i += 2) {
-    s.covariance(i, i) = 1e-4;
-    s.covariance(i + 1, i + 1) = 1e-5;
-    s.covariance(i + 1, 2) = s.covariance(2, i + 1) = 0.5e-5;
-  }
-  s.scan_poses = {{s.first_utime, Pose2()}, {s.last_utime, step}};
-  return s;
-}
-
-rt::Sighting make_sighting(int observer, int observed, std::int64_t utime) {
-  rt::Sighting s;
-  s.utime = utime;
-  s.observer_id = observer;
-  s.observed_id = observed;
-  s.x_AB = Pose2(2.0, 0.5, 0.1);
-  s.covariance = Eigen::Vector3d(0.0025, 0.0025, 0.0004).asDiagonal();
-  s.observer_seq = 0;
-  s.x_LA = Pose2(0.2, 0.0, 0.0);
-  s.cov_LA = Eigen::Matrix3d::Identity() * 1e-4;
-  s.observed_seq = 0;
-  return s;
-}
-
-lmf::local_map_t msg(const LocalMapSnapshot& s) { return rt::to_message(s).value(); }
-lmf::sighting_t msg(const rt::Sighting& s) { return rt::to_message(s).value(); }
-
-class ServerHostileInput : public ::testing::Test {
+class ServerHostileInput : public lmf::testing::ServerNodeFixture {
  protected:
-  ServerHostileInput() : bus_("memq://"), loop_(bus_, loop_options()) {
-    bus_.subscribe_message<lmf::local_map_ack_t>(channels_.local_map_ack(),
-                                                 [this](const std::string&, const lmf::local_map_ack_t&) { ++acks_; });
-  }
-
-  static rt::EventLoopOptions loop_options() {
-    rt::EventLoopOptions o;
-    o.handle_signals = false;
-    return o;
-  }
-
   lmf::server::ServerOptions options() const {
     lmf::server::ServerOptions o;
     o.out_dir = std::filesystem::path(::testing::TempDir()) / "lmf_server_hostile";
@@ -119,9 +66,7 @@ class ServerHostileInput : public ::testing::Test {
   // What the server has decided so far: every message ends in a counted
   // rejection or an acknowledgement (or, for sightings, an applied one).
   std::int64_t decisions(const lmf::server::ServerNode& node) const {
-    std::int64_t n = acks_ + node.stats().sightings_applied;
-    for (const auto& [name, count] : node.reject_counts()) n += count;
-    return n;
+    return static_cast<std::int64_t>(acks_.size()) + node.stats().sightings_applied + reject_total(node);
   }
 
   // Publishes one message and runs the loop until the server decided on it.
@@ -140,18 +85,6 @@ class ServerHostileInput : public ::testing::Test {
   bool send(lmf::server::ServerNode& node, const std::string& channel, const Msg& m) {
     return send(node, channel, rt::encode_message(m));
   }
-
-  static std::int64_t count(const lmf::server::ServerNode& node, const std::string& reason) {
-    for (const auto& [name, n] : node.reject_counts()) {
-      if (name == reason) return n;
-    }
-    return 0;
-  }
-
-  rt::Channels channels_;
-  rt::Bus bus_;
-  rt::EventLoop loop_;
-  std::int64_t acks_ = 0;
 };
 
 TEST_F(ServerHostileInput, EveryKindOfBadMessageIsRejectedByReasonAndTheMapIsThatOfTheGoodOnes) {
@@ -159,9 +92,9 @@ TEST_F(ServerHostileInput, EveryKindOfBadMessageIsRejectedByReasonAndTheMapIsTha
   // The good inputs, and the same applied to a GlobalMap directly.
   lmf::fusion::GlobalMap reference(options().global_map);
   reference.join_robot(0, Pose2());  // as the server does at start (first robot 0)
-  ASSERT_TRUE(send(node, channels_.local_map(), msg(make_map(0, 0))));
-  reference.fuse(make_map(0, 0));
-  ASSERT_TRUE(send(node, channels_.sighting(), msg(make_sighting(0, 2, 500'000))));
+  ASSERT_TRUE(send(node, channels_.local_map(), to_msg(room_local_map(0, 0))));
+  reference.fuse(room_local_map(0, 0));
+  ASSERT_TRUE(send(node, channels_.sighting(), to_msg(make_sighting(0, 2, 500'000))));
   reference.add_sighting(lmf::server::to_robot_sighting(make_sighting(0, 2, 500'000)));
   const std::int64_t fusions = node.view().fusion_count;
   ASSERT_EQ(node.view().counts.robots_joined, 2);
@@ -175,31 +108,31 @@ TEST_F(ServerHostileInput, EveryKindOfBadMessageIsRejectedByReasonAndTheMapIsTha
   const auto bad = [&](const std::string& channel, const Bytes& bytes, const std::string& reason) {
     ASSERT_TRUE(send(node, channel, bytes)) << "no decision on a message expected to be " << reason;
     ++expected[reason];
-    EXPECT_EQ(count(node, reason), expected[reason]) << "after a message expected to be " << reason;
+    EXPECT_EQ(reject_count(node, reason), expected[reason]) << "after a message expected to be " << reason;
   };
   const auto bad_map = [&](const std::function<void(lmf::local_map_t&)>& edit, const std::string& reason) {
-    lmf::local_map_t m = msg(make_map(0, 1));
+    lmf::local_map_t m = to_msg(room_local_map(0, 1));
     edit(m);
     bad(map_channel, rt::encode_message(m), reason);
   };
   const auto bad_sighting = [&](const std::function<void(lmf::sighting_t&)>& edit, const std::string& reason) {
-    lmf::sighting_t s = msg(make_sighting(0, 1, 600'000));
+    lmf::sighting_t s = to_msg(make_sighting(0, 1, 600'000));
     edit(s);
     bad(sighting_channel, rt::encode_message(s), reason);
   };
 
   // ---- LMF_LOCAL_MAP ----
   bad(map_channel, Bytes{0xde, 0xad, 0xbe, 0xef, 1, 2, 3, 4, 5, 6, 7, 8, 9}, "decode_failed");
-  Bytes truncated = rt::encode_message(msg(make_map(0, 1)));
+  Bytes truncated = rt::encode_message(to_msg(room_local_map(0, 1)));
   truncated.resize(truncated.size() - 3);
   bad(map_channel, truncated, "decode_failed");
   bad(map_channel, Bytes((1 << 16) + 1, 0), "oversized");                      // more bytes than the limit
-  bad(map_channel, rt::encode_message(msg(make_map(0, 1, kMaxSegments + 1))), "oversized");  // too many segments
+  bad(map_channel, rt::encode_message(to_msg(room_local_map(0, 1, kMaxSegments + 1))), "oversized");  // too many segments
   {
     // A forged count on the wire (lcm-gen's encoder would read past the vector):
     // num_segments follows hash, utime, robot_id, seq, first_scan_utime,
     // num_scans and the robot pose (8 + 8 + 4 + 8 + 8 + 4 + 24 bytes).
-    Bytes forged = rt::encode_message(msg(make_map(0, 1)));
+    Bytes forged = rt::encode_message(to_msg(room_local_map(0, 1)));
     constexpr std::size_t kNumSegmentsAt = 64;
     ASSERT_EQ(forged.at(kNumSegmentsAt + 3), 5) << "local_map_t layout changed";
     forged[kNumSegmentsAt + 1] = 0x10;  // 5 -> 0x00100005 segments
@@ -218,8 +151,8 @@ TEST_F(ServerHostileInput, EveryKindOfBadMessageIsRejectedByReasonAndTheMapIsTha
   bad_map([](auto& m) { m.first_scan_utime = m.utime + 1; }, "out_of_range");
   bad_map([](auto& m) { m.segments[1].length = -2.0f; }, "out_of_range");
   bad_map([](auto& m) { m.segments[1].location.x = 1e7; }, "out_of_range");    // refused by the GlobalMap itself
-  bad(map_channel, rt::encode_message(msg(make_map(7, 0))), "unknown_robot");  // --max-robots 4
-  bad(map_channel, rt::encode_message(msg(make_map(0, 0))), "stale_sequence"); // applied before: from the past
+  bad(map_channel, rt::encode_message(to_msg(room_local_map(7, 0))), "unknown_robot");  // --max-robots 4
+  bad(map_channel, rt::encode_message(to_msg(room_local_map(0, 0))), "stale_sequence"); // applied before: from the past
 
   // ---- LMF_SIGHTING ----
   bad(sighting_channel, Bytes{1, 2, 3}, "decode_failed");
@@ -234,11 +167,10 @@ TEST_F(ServerHostileInput, EveryKindOfBadMessageIsRejectedByReasonAndTheMapIsTha
   bad_sighting([](auto& s) { s.relative.x = 2e6; }, "out_of_range");             // refused by the GlobalMap
   bad_sighting([](auto& s) { s.observed_id = 9; }, "unknown_robot");
   bad_sighting([](auto& s) { s.observer_id = kMaxRobots; }, "unknown_robot");
-  bad(sighting_channel, rt::encode_message(msg(make_sighting(0, 2, 500'000))), "stale_sequence");  // replayed
+  bad(sighting_channel, rt::encode_message(to_msg(make_sighting(0, 2, 500'000))), "stale_sequence");  // replayed
 
   EXPECT_EQ(node.view().fusion_count, fusions);
-  std::int64_t total = 0;
-  for (const auto& [name, n] : node.reject_counts()) total += n;
+  const std::int64_t total = reject_total(node);
   std::int64_t expected_total = 0;
   for (const auto& [name, n] : expected) expected_total += n;
   EXPECT_EQ(total, expected_total) << "a message was counted under an unexpected reason";
@@ -264,10 +196,10 @@ TEST_F(ServerHostileInput, MutatedMessagesLeaveTheSameMapAsTheServersDecisionsOn
   const rt::DecodeLimits limits = options().limits;
 
   std::vector<Bytes> map_seeds;
-  for (std::int64_t seq = 0; seq < 4; ++seq) map_seeds.push_back(rt::encode_message(msg(make_map(0, seq))));
-  map_seeds.push_back(rt::encode_message(msg(make_map(1, 0, 4, Pose2(2.0, 0.5, 0.1)))));
-  std::vector<Bytes> sighting_seeds = {rt::encode_message(msg(make_sighting(0, 1, 900'000))),
-                                       rt::encode_message(msg(make_sighting(0, 3, 950'000)))};
+  for (std::int64_t seq = 0; seq < 4; ++seq) map_seeds.push_back(rt::encode_message(to_msg(room_local_map(0, seq))));
+  map_seeds.push_back(rt::encode_message(to_msg(room_local_map(1, 0, 4, Pose2(2.0, 0.5, 0.1)))));
+  std::vector<Bytes> sighting_seeds = {rt::encode_message(to_msg(make_sighting(0, 1, 900'000))),
+                                       rt::encode_message(to_msg(make_sighting(0, 3, 950'000)))};
   lmf::fuzz::Mutator map_mutator(map_seeds, 1 << 16);
   lmf::fuzz::Mutator sighting_mutator(sighting_seeds, 1 << 12);
 
@@ -304,9 +236,7 @@ TEST_F(ServerHostileInput, MutatedMessagesLeaveTheSameMapAsTheServersDecisionsOn
       }
     }
   }
-  std::int64_t server_rejects = 0;
-  for (const auto& [name, n] : node.reject_counts()) server_rejects += n;
-  EXPECT_EQ(server_rejects, reference_rejects);
+  EXPECT_EQ(reject_total(node), reference_rejects);
   EXPECT_GT(reference_rejects, static_cast<std::int64_t>(kInputs / 4)) << "the mutations should mostly be refused";
   EXPECT_GT(node.view().fusion_count, 0) << "and some maps fused";
 

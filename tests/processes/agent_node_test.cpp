@@ -30,41 +30,15 @@ using lmf::robot_agent::AgentNode;
 using lmf::robot_agent::AgentOptions;
 using lmf::runtime::RejectReason;
 using lmf::testing::run_until;
-
-// Robot 0's scans of a short simulated mission, loaded once.
-const std::vector<lmf::LaserScan>& sim_scans() {
-  static const std::vector<lmf::LaserScan> scans = [] {
-    lmf::testing::TempDir dir("lmf-agent-test");
-    lmf::testing::write_sim_mission(dir.path(), 40.0, 5, 1);
-    return lmf::mission::load_sim_folder(dir.path(), {}).robots.front().scans;
-  }();
-  return scans;
-}
+using lmf::testing::sim_scans;
 
 // One agent on a memq bus with a probe that records what it publishes.
-struct Rig {
-  rt::Bus bus{"memq://"};
-  rt::EventLoop loop{bus, rt::EventLoopOptions{false}};
-  rt::Channels channels;
+struct Rig : lmf::testing::AgentProbe {
   std::unique_ptr<AgentNode> agent;
-  std::vector<rt::ScanAck> acks;
-  std::vector<lmf::LocalMapSnapshot> maps;  // every transmission received
-  std::map<std::int64_t, lmf::LocalMapSnapshot> by_seq;  // the latest of each map
   std::vector<lmf::agent_status_t> statuses;
 
   explicit Rig(AgentOptions options) {
     agent = std::make_unique<AgentNode>(bus, loop, options);
-    bus.subscribe(channels.scan_ack(), [this](const std::string&, const void* d, std::size_t n) {
-      auto ack = rt::decode<rt::ScanAck>(d, n);
-      ASSERT_TRUE(ack.ok()) << ack.rejection().describe();
-      acks.push_back(ack.value());
-    });
-    bus.subscribe(channels.local_map(), [this](const std::string&, const void* d, std::size_t n) {
-      auto map = rt::decode<lmf::LocalMapSnapshot>(d, n);
-      ASSERT_TRUE(map.ok()) << map.rejection().describe();
-      maps.push_back(map.value());
-      by_seq[map.value().seq] = map.value();
-    });
     bus.subscribe(channels.agent_status(), [this](const std::string&, const void* d, std::size_t n) {
       auto status = rt::decode_message<lmf::agent_status_t>(d, n);
       ASSERT_TRUE(status.ok()) << status.rejection().describe();
@@ -81,7 +55,6 @@ struct Rig {
   }
   void send(const rt::RobotScan& s) { bus.publish(channels.scan(s.robot_id), rt::to_message(s)); }
   void send_raw(const std::vector<std::uint8_t>& bytes) { bus.publish_raw(channels.scan(agent->robot_id()), bytes); }
-  void drain() { loop.poll(); loop.poll(); }
   void ack_map(std::int64_t seq, rt::LocalMapAck::Status status = rt::LocalMapAck::Status::kFused) {
     bus.publish(channels.local_map_ack(), rt::to_message(rt::LocalMapAck{1, agent->robot_id(), seq, status}));
   }

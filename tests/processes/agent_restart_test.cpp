@@ -51,6 +51,7 @@ using lmf::robot_agent::AgentState;
 using lmf::robot_agent::AgentStateError;
 using lmf::testing::run_until;
 using lmf::testing::TempDir;
+using lmf::testing::sim_scans;
 
 std::vector<std::uint8_t> encoded_map(int robot_id, std::int64_t seq) {
   lmf::LocalMapSnapshot snapshot;
@@ -212,46 +213,14 @@ TEST(AgentState, FilesAreReplacedAtomicallyAndBadOnesNamed) {
 
 // ---- one agent, killed and restarted -------------------------------------------------------
 
-// Robot 0's scans of a short simulated mission, loaded once.
-const std::vector<lmf::LaserScan>& sim_scans() {
-  static const std::vector<lmf::LaserScan> scans = [] {
-    TempDir dir("lmf-agent-restart-scans");
-    lmf::testing::write_sim_mission(dir.path(), 40.0, 5, 1);
-    return lmf::mission::load_sim_folder(dir.path(), {}).robots.front().scans;
-  }();
-  return scans;
-}
-
 // A bus with a probe of what agents publish; the agent itself comes and goes.
-struct Rig {
-  rt::Bus bus{"memq://"};
-  rt::EventLoop loop{bus, rt::EventLoopOptions{false}};
-  rt::Channels channels;
-  std::vector<rt::ScanAck> acks;
-  std::vector<lmf::LocalMapSnapshot> maps;  // every transmission received
-
-  Rig() {
-    bus.subscribe(channels.scan_ack(), [this](const std::string&, const void* d, std::size_t n) {
-      auto ack = rt::decode<rt::ScanAck>(d, n);
-      ASSERT_TRUE(ack.ok()) << ack.rejection().describe();
-      acks.push_back(ack.value());
-    });
-    bus.subscribe(channels.local_map(), [this](const std::string&, const void* d, std::size_t n) {
-      auto map = rt::decode<lmf::LocalMapSnapshot>(d, n);
-      ASSERT_TRUE(map.ok()) << map.rejection().describe();
-      maps.push_back(map.value());
-    });
-  }
+struct Rig : lmf::testing::AgentProbe {
   void send(std::int64_t seq) {
     rt::RobotScan s;
     s.robot_id = 0;
     s.seq = seq;
     s.scan = sim_scans().at(static_cast<std::size_t>(seq));
     bus.publish(channels.scan(0), rt::to_message(s));
-  }
-  void drain() {
-    loop.poll();
-    loop.poll();
   }
   void ack_map(std::int64_t seq) {
     bus.publish(channels.local_map_ack(),

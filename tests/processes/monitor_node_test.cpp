@@ -22,11 +22,13 @@
 #include "runtime/channels.hpp"
 #include "runtime/convert.hpp"
 #include "runtime/event_loop.hpp"
+#include "runtime/event_loop_test_support.hpp"
 
 namespace {
 
 namespace rt = lmf::runtime;
 using namespace std::chrono_literals;
+using lmf::testing::no_signals;
 
 lmf::agent_status_t agent_status(int robot_id, std::int64_t utime, float max_ms) {
   lmf::agent_status_t s{};
@@ -96,12 +98,6 @@ std::string read_file(const std::filesystem::path& file) {
   std::stringstream s;
   s << in.rdbuf();
   return s.str();
-}
-
-rt::EventLoopOptions no_signals() {
-  rt::EventLoopOptions o;
-  o.handle_signals = false;
-  return o;
 }
 
 TEST(MonitorNode, LiveJsonLinesParseAndCarryTheStatus) {

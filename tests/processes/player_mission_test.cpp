@@ -35,11 +35,9 @@ class PlayerMission : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = std::make_unique<lmf::testing::TempDir>("lmf-player-test");
-    lmf::testing::write_sim_mission(dir_->path(), 60.0, 3, 2);
-    config_ = std::make_unique<lmf::mission::MissionConfig>();
-    config_->local_map.ship_distance_m = 4.0;  // more local maps in a short mission
-    inputs_ = std::make_unique<lmf::mission::MissionInputs>(
-        lmf::mission::load_sim_folder(dir_->path(), config_->sighting_noise));
+    config_ = std::make_unique<lmf::mission::MissionConfig>(lmf::testing::short_mission_config());
+    inputs_ =
+        std::make_unique<lmf::mission::MissionInputs>(lmf::testing::load_short_sim_mission(dir_->path(), *config_));
   }
   static void TearDownTestSuite() {
     inputs_.reset();

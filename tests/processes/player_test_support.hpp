@@ -1,6 +1,7 @@
 // Helpers of the agent/player process tests: a simulated mission on disk, a
 // fake fusion server (GlobalMap behind the LCM protocol, fusing in arrival
-// order on the loop thread), and running an event loop until a condition holds.
+// order on the loop thread), a probe of what agents publish, and running an
+// event loop until a condition holds.
 #pragma once
 
 #include <chrono>
@@ -70,6 +71,63 @@ inline void write_sim_mission(const std::filesystem::path& dir, double duration_
   config.duration_s = duration_s;
   sim::write_mission(sim::simulate_mission(config), dir);
 }
+
+// The mission config of the one-process mission tests: several local maps in a short mission.
+inline mission::MissionConfig short_mission_config() {
+  mission::MissionConfig config;
+  config.local_map.ship_distance_m = 4.0;
+  return config;
+}
+
+// A 60 s two-robot simulated mission written to `dir` and loaded as the player loads it.
+inline mission::MissionInputs load_short_sim_mission(const std::filesystem::path& dir,
+                                                     const mission::MissionConfig& config) {
+  write_sim_mission(dir, 60.0, 3, 2);
+  return mission::load_sim_folder(dir, config.sighting_noise);
+}
+
+// Robot 0's scans of a short (40 s, one robot) simulated mission, loaded once.
+inline const std::vector<LaserScan>& sim_scans() {
+  static const std::vector<LaserScan> scans = [] {
+    TempDir dir("lmf-agent-scans");
+    write_sim_mission(dir.path(), 40.0, 5, 1);
+    return mission::load_sim_folder(dir.path(), {}).robots.front().scans;
+  }();
+  return scans;
+}
+
+// A memq:// bus and loop with a probe that decodes what agents publish: scan
+// acks and local maps.
+struct AgentProbe {
+  runtime::Bus bus{"memq://"};
+  runtime::EventLoop loop{bus, runtime::EventLoopOptions{false}};
+  runtime::Channels channels;
+  std::vector<runtime::ScanAck> acks;
+  std::vector<LocalMapSnapshot> maps;                 // every transmission received
+  std::map<std::int64_t, LocalMapSnapshot> by_seq;  // the latest of each map
+
+  AgentProbe() {
+    bus.subscribe(channels.scan_ack(), [this](const std::string&, const void* d, std::size_t n) {
+      auto ack = runtime::decode<runtime::ScanAck>(d, n);
+      ASSERT_TRUE(ack.ok()) << ack.rejection().describe();
+      acks.push_back(ack.value());
+    });
+    bus.subscribe(channels.local_map(), [this](const std::string&, const void* d, std::size_t n) {
+      auto map = runtime::decode<LocalMapSnapshot>(d, n);
+      ASSERT_TRUE(map.ok()) << map.rejection().describe();
+      maps.push_back(map.value());
+      by_seq[map.value().seq] = map.value();
+    });
+  }
+  AgentProbe(const AgentProbe&) = delete;
+  AgentProbe& operator=(const AgentProbe&) = delete;
+
+  // Delivers what is pending, then what handling it published.
+  void drain() {
+    loop.poll();
+    loop.poll();
+  }
+};
 
 // What the wire does to a scan (ranges and angles become float), so an
 // offline run on these inputs sees exactly what the agents see.

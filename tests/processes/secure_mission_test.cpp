@@ -31,6 +31,7 @@
 #include "runtime/auth.hpp"
 #include "runtime/bus.hpp"
 #include "runtime/event_loop.hpp"
+#include "system_test_support.hpp"
 
 namespace {
 
@@ -56,11 +57,8 @@ std::int64_t count(const rt::Bus& bus, RejectReason reason) { return bus.rejects
 
 TEST(SecureMission, ForgedAndReplayedMessagesAreNotApplied) {
   lmf::testing::TempDir dir("lmf-secure-mission");
-  lmf::testing::write_sim_mission(dir.path() / "sim", 60.0, 3, 2);
-  lmf::mission::MissionConfig config;
-  config.local_map.ship_distance_m = 4.0;  // several local maps in a short mission
-  const lmf::mission::MissionInputs inputs =
-      lmf::mission::load_sim_folder(dir.path() / "sim", config.sighting_noise);
+  const lmf::mission::MissionConfig config = lmf::testing::short_mission_config();
+  const lmf::mission::MissionInputs inputs = lmf::testing::load_short_sim_mission(dir.path() / "sim", config);
   ASSERT_EQ(inputs.robots.size(), 2u);
   const int victim = inputs.robots[0].robot_id;  // joins at start: its maps are fused at once
   const int other = inputs.robots[1].robot_id;
@@ -93,7 +91,7 @@ TEST(SecureMission, ForgedAndReplayedMessagesAreNotApplied) {
   rt::Bus wrong_key_attacker(network, auth::Config{auth::robot_principal(victim),
                                                    std::make_shared<const auth::KeyRing>(wrong)});
 
-  std::map<std::tuple<int, std::int64_t, std::int8_t>, int> acks;  // verified by the monitor's keys
+  lmf::testing::AckCounts acks;  // verified by the monitor's keys
   monitor_bus.subscribe_message<lmf::local_map_ack_t>(channels.local_map_ack(),
                                                       [&](const std::string&, const lmf::local_map_ack_t& a) {
                                                         ++acks[{a.robot_id, a.seq, a.status}];
@@ -110,25 +108,15 @@ TEST(SecureMission, ForgedAndReplayedMessagesAreNotApplied) {
       },
       &capture);
 
-  lmf::server::ServerOptions server_options;
-  server_options.global_map = config.global_map;
-  server_options.first_robot = victim;
-  server_options.out_dir = dir.path() / "server";
+  const lmf::server::ServerOptions server_options =
+      lmf::testing::mission_server_options(config, victim, dir.path() / "server");
   lmf::server::ServerNode server(server_bus, loop, channels, server_options);
   std::vector<std::unique_ptr<lmf::robot_agent::AgentNode>> agents;
   for (const int id : robot_ids) {
-    lmf::robot_agent::AgentOptions options;
-    options.robot_id = id;
-    options.local_map = config.local_map;
-    options.resend_interval = 200ms;
-    agents.push_back(std::make_unique<lmf::robot_agent::AgentNode>(*agent_bus[id], loop, options));
+    agents.push_back(std::make_unique<lmf::robot_agent::AgentNode>(*agent_bus[id], loop,
+                                                                   lmf::testing::mission_agent_options(id, config)));
   }
-  lmf::log_player::PlayerOptions player_options;
-  player_options.lockstep = true;
-  player_options.ack_timeout = 2000ms;
-  player_options.mission_end_interval = 20ms;
-  player_options.mission_end_repeats = 3;
-  lmf::log_player::PlayerNode player(player_bus, loop, inputs, player_options);
+  lmf::log_player::PlayerNode player(player_bus, loop, inputs, lmf::testing::lockstep_player_options());
 
   std::int64_t fusions_before_attack = -1;
   std::int64_t captured_seq = -1;
@@ -157,13 +145,7 @@ TEST(SecureMission, ForgedAndReplayedMessagesAreNotApplied) {
   });
   player.start();
 
-  const auto all_done = [&] {
-    if (!player.finished()) return false;
-    for (const auto& a : agents) {
-      if (!a->mission_done()) return false;
-    }
-    return !server.worker_busy();
-  };
+  const auto all_done = [&] { return lmf::testing::mission_finished(player, agents, server); };
   ASSERT_TRUE(lmf::testing::run_until(loop, all_done, 90s)) << player.summary();
   loop.run_for(50ms);
   ASSERT_GE(fusions_before_attack, 0) << "the attack never ran";
@@ -190,16 +172,7 @@ TEST(SecureMission, ForgedAndReplayedMessagesAreNotApplied) {
   EXPECT_EQ(acks.count({victim, captured_seq + 1000, lmf::local_map_ack_t::QUEUED}), 0u);
 
   // The genuine mission completed as if nothing happened.
-  std::int64_t shipped = 0;
-  for (const auto& agent : agents) {
-    const auto& c = agent->counters();
-    EXPECT_EQ(c.maps_acknowledged, c.maps_shipped);
-    for (std::int64_t seq = 0; seq < c.maps_shipped; ++seq) {
-      EXPECT_EQ((acks[{agent->robot_id(), seq, lmf::local_map_ack_t::FUSED}]), 1)
-          << "robot " << agent->robot_id() << " map " << seq;
-    }
-    shipped += c.maps_shipped;
-  }
+  const std::int64_t shipped = lmf::testing::expect_each_map_fused_once(agents, acks);
   EXPECT_GT(captured_seq + 1, 0);
   EXPECT_EQ(server.view().fusion_count, shipped);
   ASSERT_TRUE(server.shutdown(false));
@@ -209,12 +182,7 @@ TEST(SecureMission, ForgedAndReplayedMessagesAreNotApplied) {
   const lmf::mission::MissionResult expected = offline.run();
   EXPECT_EQ(server.view().fusion_count, static_cast<std::int64_t>(expected.fusions.size()));
   EXPECT_EQ(map->counts().segments, offline.global_map().counts().segments);
-  for (const auto& frame : offline.global_map().corrected_frames()) {
-    const auto ours = map->corrected_frame(frame.robot_id);
-    ASSERT_TRUE(ours.has_value());
-    EXPECT_EQ(ours->seq, frame.seq);
-    EXPECT_TRUE(lmf::is_near(ours->x_WL, frame.x_WL, 1e-5, 1e-6)) << "robot " << frame.robot_id;
-  }
+  lmf::testing::expect_frames_as_offline(*map, offline.global_map());
 
   // Control: the same unsigned forgery (a) is taken by a server without keys.
   rt::Bus open_network("memq://");

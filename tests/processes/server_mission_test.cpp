@@ -32,6 +32,7 @@
 #include "runtime/auth.hpp"
 #include "runtime/bus.hpp"
 #include "runtime/event_loop.hpp"
+#include "system_test_support.hpp"
 
 namespace {
 
@@ -102,16 +103,13 @@ void sign_capture(const std::filesystem::path& in, const std::filesystem::path& 
 
 TEST(ServerMission, LockstepReplayThroughTheServerEqualsOffline) {
   lmf::testing::TempDir dir("lmf-server-mission");
-  lmf::testing::write_sim_mission(dir.path() / "sim", 60.0, 3, 2);
-  lmf::mission::MissionConfig config;
-  config.local_map.ship_distance_m = 4.0;  // several local maps in a short mission
-  const lmf::mission::MissionInputs inputs =
-      lmf::mission::load_sim_folder(dir.path() / "sim", config.sighting_noise);
+  const lmf::mission::MissionConfig config = lmf::testing::short_mission_config();
+  const lmf::mission::MissionInputs inputs = lmf::testing::load_short_sim_mission(dir.path() / "sim", config);
   ASSERT_EQ(inputs.robots.size(), 2u);
 
   rt::Bus bus("memq://");
   rt::EventLoop loop(bus, rt::EventLoopOptions{false});
-  std::map<std::tuple<int, std::int64_t, std::int8_t>, int> acks;  // (robot, seq, status) -> count
+  lmf::testing::AckCounts acks;
   bus.subscribe_message<lmf::local_map_ack_t>(rt::Channels().local_map_ack(),
                                               [&](const std::string&, const lmf::local_map_ack_t& a) {
                                                 ++acks[{a.robot_id, a.seq, a.status}];
@@ -136,48 +134,23 @@ TEST(ServerMission, LockstepReplayThroughTheServerEqualsOffline) {
                   ASSERT_EQ(capture_file->writeEvent(&event), 0);
                 });
 
-  lmf::server::ServerOptions server_options;
-  server_options.global_map = config.global_map;
-  server_options.first_robot = inputs.robots.front().robot_id;
-  server_options.out_dir = dir.path() / "server";
+  const lmf::server::ServerOptions server_options =
+      lmf::testing::mission_server_options(config, inputs.robots.front().robot_id, dir.path() / "server");
   lmf::server::ServerNode server(bus, loop, rt::Channels(), server_options);
 
   std::vector<std::unique_ptr<lmf::robot_agent::AgentNode>> agents;
   for (const auto& robot : inputs.robots) {
-    lmf::robot_agent::AgentOptions options;
-    options.robot_id = robot.robot_id;
-    options.local_map = config.local_map;
-    options.resend_interval = 200ms;
-    agents.push_back(std::make_unique<lmf::robot_agent::AgentNode>(bus, loop, options));
+    agents.push_back(std::make_unique<lmf::robot_agent::AgentNode>(
+        bus, loop, lmf::testing::mission_agent_options(robot.robot_id, config)));
   }
-  lmf::log_player::PlayerOptions player_options;
-  player_options.lockstep = true;
-  player_options.ack_timeout = 2000ms;
-  player_options.mission_end_interval = 20ms;
-  player_options.mission_end_repeats = 3;
-  lmf::log_player::PlayerNode player(bus, loop, inputs, player_options);
+  lmf::log_player::PlayerNode player(bus, loop, inputs, lmf::testing::lockstep_player_options());
   player.start();
 
-  const auto all_done = [&] {
-    if (!player.finished()) return false;
-    for (const auto& a : agents) {
-      if (!a->mission_done()) return false;
-    }
-    return !server.worker_busy();
-  };
+  const auto all_done = [&] { return lmf::testing::mission_finished(player, agents, server); };
   ASSERT_TRUE(lmf::testing::run_until(loop, all_done, 90s)) << player.summary();
   loop.run_for(50ms);
 
-  std::int64_t shipped = 0;
-  for (const auto& agent : agents) {
-    const auto& c = agent->counters();
-    EXPECT_EQ(c.maps_acknowledged, c.maps_shipped);
-    for (std::int64_t seq = 0; seq < c.maps_shipped; ++seq) {
-      EXPECT_EQ((acks[{agent->robot_id(), seq, lmf::local_map_ack_t::FUSED}]), 1)
-          << "robot " << agent->robot_id() << " map " << seq;
-    }
-    shipped += c.maps_shipped;
-  }
+  const std::int64_t shipped = lmf::testing::expect_each_map_fused_once(agents, acks);
   EXPECT_EQ(server.view().fusion_count, shipped);
   EXPECT_EQ(server.reject_counts().size(), 0u);
   EXPECT_EQ(server.stats().deferred_queue_full, 0);
@@ -196,16 +169,7 @@ TEST(ServerMission, LockstepReplayThroughTheServerEqualsOffline) {
   EXPECT_EQ(counts.graph_edges, offline_counts.graph_edges);
   EXPECT_EQ(counts.robots_joined, offline_counts.robots_joined);
   EXPECT_EQ(counts.state_dimension, offline_counts.state_dimension);
-  for (const auto& frame : offline.global_map().corrected_frames()) {
-    const auto ours = map->corrected_frame(frame.robot_id);
-    ASSERT_TRUE(ours.has_value());
-    EXPECT_EQ(ours->seq, frame.seq);
-    // Same fusions in the same order; what remains is segment_t.length being a
-    // float on the wire (lmf-offline keeps doubles): ~1e-7 m here.
-    EXPECT_TRUE(lmf::is_near(ours->x_WL, frame.x_WL, 1e-5, 1e-6))
-        << "robot " << frame.robot_id << ": " << ours->x_WL.x << " " << ours->x_WL.y << " " << ours->x_WL.phi
-        << " vs offline " << frame.x_WL.x << " " << frame.x_WL.y << " " << frame.x_WL.phi;
-  }
+  lmf::testing::expect_frames_as_offline(*map, offline.global_map());
   // The written trajectories are the offline ones (scan poses travelled in local_map_t).
   for (const auto& r : expected.robots) {
     if (!r.joined) continue;

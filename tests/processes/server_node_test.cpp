@@ -24,6 +24,7 @@
 #include "runtime/channels.hpp"
 #include "runtime/convert.hpp"
 #include "runtime/event_loop.hpp"
+#include "server_test_support.hpp"
 
 namespace {
 
@@ -31,83 +32,25 @@ namespace rt = lmf::runtime;
 using namespace std::chrono_literals;
 using lmf::LocalMapSnapshot;
 using lmf::Pose2;
+using lmf::testing::make_sighting;
+using lmf::testing::reject_count;
+using lmf::testing::reject_total;
+using lmf::testing::to_msg;
 using Status = rt::LocalMapAck::Status;
 
-// A rectangular room, walls facing inwards (x along each wall, counter-clockwise).
-std::vector<std::pair<Pose2, double>> room_walls() {
-  const double pi = 3.14159265358979323846;
-  return {{Pose2(4.0, -3.0, 0.0), 10.0},
-          {Pose2(9.0, 0.0, pi / 2), 6.0},
-          {Pose2(4.0, 3.0, pi), 10.0},
-          {Pose2(-1.0, 0.0, -pi / 2), 6.0},
-          {Pose2(2.0, -1.5, pi / 2), 1.0},
-          {Pose2(6.0, 1.5, -pi / 2), 1.0}};
-}
-
-// Local map `seq` of a robot whose local frames advance 1 m along x from
-// x_WL0: exact segment estimates, a small PSD covariance, two scan poses.
+// room_local_map() with all six walls of the room and a third scan pose mid-way.
 LocalMapSnapshot make_map(int robot_id, std::int64_t seq, const Pose2& x_WL0 = Pose2()) {
-  const Pose2 step(1.0, 0.0, 0.0);
-  Pose2 x_WL = x_WL0;
-  for (std::int64_t k = 0; k < seq; ++k) x_WL = lmf::compose(x_WL, step);
-  LocalMapSnapshot s;
-  s.robot_id = robot_id;
-  s.seq = seq;
-  s.first_utime = 1'000'000 + seq * 1'000'000;
-  s.last_utime = s.first_utime + 800'000;
-  s.x_LR = step;
-  const auto walls = room_walls();
-  for (const auto& [x_WS, length] : walls) s.segments.push_back({lmf::between(x_WL, x_WS), length});
-  const auto n = static_cast<Eigen::Index>(3 + 2 * walls.size());
-  s.covariance = Eigen::MatrixXd::Zero(n, n);
-  s.covariance.diagonal().head(3) << 1e-3, 1e-3, 1e-4;
-  for (Eigen::Index i = 3; i < n; i += 2) {
-    s.covariance(i, i) = 1e-4;
-    s.covariance(i + 1, i + 1) = 1e-5;
-    s.covariance(i + 1, 2) = s.covariance(2, i + 1) = 0.5e-5;  // segments share the robot's heading error
-  }
-  s.scan_poses = {{s.first_utime, Pose2()}, {s.first_utime + 400'000, Pose2(0.5, 0.0, 0.0)}, {s.last_utime, step}};
+  LocalMapSnapshot s = lmf::testing::room_local_map(robot_id, seq, 6, x_WL0);
+  s.scan_poses.insert(s.scan_poses.begin() + 1, {s.first_utime + 400'000, Pose2(0.5, 0.0, 0.0)});
   return s;
 }
 
-lmf::local_map_t to_msg(const LocalMapSnapshot& s) {
-  auto msg = rt::to_message(s);
-  EXPECT_TRUE(msg.ok()) << (msg.ok() ? "" : msg.rejection().describe());
-  return msg.value();
-}
-
-rt::Sighting make_sighting(int observer, int observed, std::int64_t utime, std::int64_t observed_seq = 0) {
-  rt::Sighting s;
-  s.utime = utime;
-  s.observer_id = observer;
-  s.observed_id = observed;
-  s.x_AB = Pose2(2.0, 0.5, 0.1);
-  s.covariance = Eigen::Vector3d(0.0025, 0.0025, 0.0004).asDiagonal();
-  s.observer_seq = 0;
-  s.x_LA = Pose2(0.2, 0.0, 0.0);
-  s.cov_LA = Eigen::Matrix3d::Identity() * 1e-4;
-  s.observed_seq = observed_seq;
-  s.x_LB = Pose2();
-  s.cov_LB = Eigen::Matrix3d::Zero();
-  return s;
-}
-
-lmf::sighting_t to_msg(const rt::Sighting& s) {
-  auto msg = rt::to_message(s);
-  EXPECT_TRUE(msg.ok()) << (msg.ok() ? "" : msg.rejection().describe());
-  return msg.value();
-}
-
-class ServerNodeTest : public ::testing::Test {
+class ServerNodeTest : public lmf::testing::ServerNodeFixture {
  protected:
-  ServerNodeTest() : bus_("memq://"), loop_(bus_, no_signals()) {
+  ServerNodeTest() {
     out_ = std::filesystem::path(::testing::TempDir()) /
            ("lmf_server_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
     std::filesystem::remove_all(out_);
-    bus_.subscribe_message<lmf::local_map_ack_t>(
-        channels_.local_map_ack(), [this](const std::string&, const lmf::local_map_ack_t& ack) {
-          acks_.emplace_back(ack.robot_id, ack.seq, static_cast<Status>(ack.status));
-        });
     bus_.subscribe_message<lmf::sighting_ack_t>(
         channels_.sighting_ack(), [this](const std::string&, const lmf::sighting_ack_t& ack) {
           sighting_acks_.emplace_back(ack.utime, ack.observer_id, ack.observed_id, ack.status);
@@ -118,12 +61,6 @@ class ServerNodeTest : public ::testing::Test {
         channels_.corrected_frames(), [this](const std::string&, const lmf::corrected_frames_t& f) { frames_.push_back(f); });
     bus_.subscribe_message<lmf::global_map_t>(
         channels_.global_map(), [this](const std::string&, const lmf::global_map_t& m) { maps_.push_back(m); });
-  }
-
-  static rt::EventLoopOptions no_signals() {
-    rt::EventLoopOptions o;
-    o.handle_signals = false;
-    return o;
   }
 
   lmf::server::ServerOptions options(std::size_t capacity = 16) const {
@@ -138,51 +75,13 @@ class ServerNodeTest : public ::testing::Test {
     return o;
   }
 
-  // Runs the loop until `done` or a timeout (bounded test time).
-  bool run_until(const std::function<bool()>& done, std::chrono::milliseconds timeout = 5000ms) {
-    const auto end = std::chrono::steady_clock::now() + timeout;
-    while (!done()) {
-      if (std::chrono::steady_clock::now() > end) return false;
-      loop_.run_for(5ms);
-    }
-    return true;
-  }
-
-  // Runs until the worker is idle and every posted result was handled.
-  void settle(lmf::server::ServerNode& node) {
-    ASSERT_TRUE(run_until([&] { return !node.worker_busy(); }));
-    loop_.run_for(20ms);
-  }
-
-  int count_acks(int robot, std::int64_t seq, Status status) const {
-    int n = 0;
-    for (const auto& [r, s, st] : acks_) n += (r == robot && s == seq && st == status) ? 1 : 0;
-    return n;
-  }
-
   int count_sighting_acks(std::int64_t utime, int observer, int observed, std::int8_t status) const {
     int n = 0;
     for (const auto& [t, a, b, st] : sighting_acks_) n += (t == utime && a == observer && b == observed && st == status);
     return n;
   }
 
-  static std::int64_t reject_count(const lmf::server::ServerNode& node, const std::string& reason) {
-    for (const auto& [name, count] : node.reject_counts()) {
-      if (name == reason) return count;
-    }
-    return 0;
-  }
-  static std::int64_t reject_total(const lmf::server::ServerNode& node) {
-    std::int64_t n = 0;
-    for (const auto& [name, count] : node.reject_counts()) n += count;
-    return n;
-  }
-
-  rt::Channels channels_;
-  rt::Bus bus_;
-  rt::EventLoop loop_;
   std::filesystem::path out_;
-  std::vector<std::tuple<int, std::int64_t, Status>> acks_;
   std::vector<std::tuple<std::int64_t, int, int, std::int8_t>> sighting_acks_;  // (utime, observer, observed, status)
   std::vector<lmf::server_status_t> statuses_;
   std::vector<lmf::corrected_frames_t> frames_;

@@ -5,6 +5,7 @@
 // ServerNode restarted on a copy of a running server's state directory (what
 // kill -9 leaves) continues bit-identically and acks resends DUPLICATE.
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -24,6 +25,7 @@
 #include "runtime/channels.hpp"
 #include "runtime/convert.hpp"
 #include "runtime/event_loop.hpp"
+#include "server_test_support.hpp"
 
 namespace {
 
@@ -37,6 +39,8 @@ using lmf::server::Recovery;
 using lmf::server::StateError;
 using lmf::server::StateStore;
 using lmf::server::StateStoreOptions;
+using lmf::testing::make_sighting;
+using lmf::testing::to_msg;
 using Status = rt::LocalMapAck::Status;
 
 fs::path fresh_dir(const std::string& name) {
@@ -45,57 +49,19 @@ fs::path fresh_dir(const std::string& name) {
   return dir;
 }
 
-// Local map `seq` of a robot moving 1 m along x per map in a 10 x 6 m room.
+// Local map `seq` of a robot moving about 1 m along x per map in the room's
+// first five walls, with slightly wrong estimates (so updates really move the map).
 LocalMapSnapshot make_map(int robot_id, std::int64_t seq, const Pose2& x_WL0 = Pose2()) {
-  const double pi = 3.14159265358979323846;
-  const std::vector<std::pair<Pose2, double>> walls = {{Pose2(4.0, -3.0, 0.0), 10.0},
-                                                       {Pose2(9.0, 0.0, pi / 2), 6.0},
-                                                       {Pose2(4.0, 3.0, pi), 10.0},
-                                                       {Pose2(-1.0, 0.0, -pi / 2), 6.0},
-                                                       {Pose2(2.0, -1.5, pi / 2), 1.0}};
   const Pose2 step(1.0, 0.02 * static_cast<double>(seq % 3), 0.01);
-  Pose2 x_WL = x_WL0;
-  for (std::int64_t k = 0; k < seq; ++k) x_WL = lmf::compose(x_WL, step);
-  LocalMapSnapshot s;
-  s.robot_id = robot_id;
-  s.seq = seq;
-  s.first_utime = 1'000'000 + seq * 1'000'000;
-  s.last_utime = s.first_utime + 800'000;
-  s.x_LR = step;
-  // Slightly wrong estimates (so updates really move the map).
-  for (std::size_t i = 0; i < walls.size(); ++i) {
+  LocalMapSnapshot s = lmf::testing::room_local_map(robot_id, seq, 5, x_WL0, step);
+  for (std::size_t i = 0; i < s.segments.size(); ++i) {
     const double e = 0.01 * std::sin(static_cast<double>(seq * 7 + static_cast<std::int64_t>(i)));
-    s.segments.push_back({lmf::compose(lmf::between(x_WL, walls[i].first), Pose2(0.0, e, 0.5 * e)), walls[i].second});
+    s.segments[i].location = lmf::compose(s.segments[i].location, Pose2(0.0, e, 0.5 * e));
   }
-  const auto n = static_cast<Eigen::Index>(3 + 2 * walls.size());
-  s.covariance = Eigen::MatrixXd::Zero(n, n);
-  s.covariance.diagonal().head(3) << 1e-3, 1e-3, 1e-4;
-  for (Eigen::Index i = 3; i < n; i += 2) {
-    s.covariance(i, i) = 1e-4;
-    s.covariance(i + 1, i + 1) = 1e-5;
-    s.covariance(i + 1, 2) = s.covariance(2, i + 1) = 0.5e-5;
-  }
-  s.scan_poses = {{s.first_utime, Pose2()}, {s.last_utime, step}};
   return s;
 }
 
-std::vector<std::uint8_t> map_bytes(const LocalMapSnapshot& s) {
-  auto msg = rt::to_message(s);
-  EXPECT_TRUE(msg.ok());
-  return rt::encode_message(msg.value());
-}
-
-rt::Sighting make_sighting(int observer, int observed, std::int64_t utime) {
-  rt::Sighting s;
-  s.utime = utime;
-  s.observer_id = observer;
-  s.observed_id = observed;
-  s.x_AB = Pose2(2.0, 0.5, 0.1);
-  s.covariance = Eigen::Vector3d(0.0025, 0.0025, 0.0004).asDiagonal();
-  s.x_LA = Pose2(0.2, 0.0, 0.0);
-  s.cov_LA = Eigen::Matrix3d::Identity() * 1e-4;
-  return s;
-}
+std::vector<std::uint8_t> map_bytes(const LocalMapSnapshot& s) { return rt::encode_message(to_msg(s)); }
 
 // A server-state payload whose map has `fused` local maps of robot 0.
 std::string payload_with(int fused) {
@@ -339,21 +305,12 @@ TEST(StateStoreTest, ServerStatePayloadRoundTrips) {
 
 // ---- the server node on a state directory ------------------------------------
 
-class ServerStateTest : public ::testing::Test {
+class ServerStateTest : public lmf::testing::ServerNodeFixture {
  protected:
-  ServerStateTest() : bus_("memq://"), loop_(bus_, no_signals()) {
-    bus_.subscribe_message<lmf::local_map_ack_t>(
-        channels_.local_map_ack(), [this](const std::string&, const lmf::local_map_ack_t& ack) {
-          acks_.emplace_back(ack.robot_id, ack.seq, static_cast<Status>(ack.status));
-        });
+  ServerStateTest() {
     bus_.subscribe_message<lmf::sighting_ack_t>(
         channels_.sighting_ack(),
         [this](const std::string&, const lmf::sighting_ack_t& ack) { sighting_acks_.push_back(ack.status); });
-  }
-  static rt::EventLoopOptions no_signals() {
-    rt::EventLoopOptions o;
-    o.handle_signals = false;
-    return o;
   }
   lmf::server::ServerOptions options(const fs::path& state, const std::string& name) const {
     lmf::server::ServerOptions o;
@@ -363,28 +320,10 @@ class ServerStateTest : public ::testing::Test {
     o.snapshot_interval = 3600s;  // only at start and stop: everything else stays in the journal
     return o;
   }
-  bool run_until(const std::function<bool()>& done, std::chrono::milliseconds timeout = 5000ms) {
-    const auto end = std::chrono::steady_clock::now() + timeout;
-    while (!done()) {
-      if (std::chrono::steady_clock::now() > end) return false;
-      loop_.run_for(5ms);
-    }
-    return true;
-  }
-  void settle(lmf::server::ServerNode& node) {
-    ASSERT_TRUE(run_until([&] { return !node.worker_busy(); }));
-    loop_.run_for(20ms);
-  }
-  int count_acks(int robot, std::int64_t seq, Status status) const {
-    int n = 0;
-    for (const auto& [r, s, st] : acks_) n += (r == robot && s == seq && st == status) ? 1 : 0;
-    return n;
-  }
   void publish_map(int robot, std::int64_t seq, const Pose2& x_WL0 = Pose2()) {
-    auto msg = rt::to_message(make_map(robot, seq, x_WL0));
-    bus_.publish(channels_.local_map(), msg.value());
+    bus_.publish(channels_.local_map(), to_msg(make_map(robot, seq, x_WL0)));
   }
-  void publish_sighting(const rt::Sighting& s) { bus_.publish(channels_.sighting(), rt::to_message(s).value()); }
+  void publish_sighting(const rt::Sighting& s) { bus_.publish(channels_.sighting(), to_msg(s)); }
 
   static std::string archive(const lmf::fusion::GlobalMap& map) {
     std::ostringstream out;
@@ -392,10 +331,6 @@ class ServerStateTest : public ::testing::Test {
     return out.str();
   }
 
-  rt::Channels channels_;
-  rt::Bus bus_;
-  rt::EventLoop loop_;
-  std::vector<std::tuple<int, std::int64_t, Status>> acks_;
   std::vector<std::int8_t> sighting_acks_;  // statuses, in arrival order
 };
 

@@ -12,12 +12,14 @@
 #include "runtime/bus.hpp"
 #include "runtime/channels.hpp"
 #include "runtime/event_loop.hpp"
+#include "runtime/event_loop_test_support.hpp"
 #include "runtime/options.hpp"
 
 namespace {
 
 namespace rt = lmf::runtime;
 using namespace std::chrono_literals;
+using lmf::testing::no_signals;
 
 TEST(Channels, DefaultPrefixAndNames) {
   const rt::Channels c;
@@ -162,12 +164,6 @@ TEST(Bus, BadUrlIsNotGood) {
   EXPECT_FALSE(bus.publish_raw("X", {0}));
   EXPECT_EQ(bus.publish_failures(), 1);
   EXPECT_LT(bus.handle_pending(), 0);
-}
-
-rt::EventLoopOptions no_signals() {
-  rt::EventLoopOptions options;
-  options.handle_signals = false;
-  return options;
 }
 
 TEST(EventLoop, WatchesMemqDescriptorAndDeliversFromTimers) {
