@@ -65,46 +65,10 @@ void ArchiveReader::raw(void* data, std::size_t size) {
   pos_ += size;
 }
 
-std::uint8_t ArchiveReader::u8() {
-  std::uint8_t v = 0;
-  raw(&v, sizeof v);
-  return v;
-}
-
 bool ArchiveReader::boolean() {
   const std::uint8_t v = u8();
   if (v > 1) fail("corrupt: a flag holds " + std::to_string(v));
   return v == 1;
-}
-
-std::uint32_t ArchiveReader::u32() {
-  std::uint32_t v = 0;
-  raw(&v, sizeof v);
-  return v;
-}
-
-std::int32_t ArchiveReader::i32() {
-  std::int32_t v = 0;
-  raw(&v, sizeof v);
-  return v;
-}
-
-std::uint64_t ArchiveReader::u64() {
-  std::uint64_t v = 0;
-  raw(&v, sizeof v);
-  return v;
-}
-
-std::int64_t ArchiveReader::i64() {
-  std::int64_t v = 0;
-  raw(&v, sizeof v);
-  return v;
-}
-
-double ArchiveReader::f64() {
-  double v = 0.0;
-  raw(&v, sizeof v);
-  return v;
 }
 
 std::size_t ArchiveReader::count(std::size_t min_element_bytes) {

@@ -61,13 +61,13 @@ class ArchiveWriter {
 class ArchiveReader {
  public:
   ArchiveReader(const char* data, std::size_t size, std::string context);
-  std::uint8_t u8();
+  std::uint8_t u8() { return scalar<std::uint8_t>(); }
   bool boolean();  // 0 or 1, anything else is corrupt
-  std::uint32_t u32();
-  std::int32_t i32();
-  std::uint64_t u64();
-  std::int64_t i64();
-  double f64();
+  std::uint32_t u32() { return scalar<std::uint32_t>(); }
+  std::int32_t i32() { return scalar<std::int32_t>(); }
+  std::uint64_t u64() { return scalar<std::uint64_t>(); }
+  std::int64_t i64() { return scalar<std::int64_t>(); }
+  double f64() { return scalar<double>(); }
   // An array count whose elements take at least `min_element_bytes` each: a
   // count larger than the remaining bytes allow is corrupt (never allocated).
   std::size_t count(std::size_t min_element_bytes);
@@ -80,6 +80,14 @@ class ArchiveReader {
   [[noreturn]] void fail(const std::string& what) const;
 
  private:
+  // A fixed-size field in host (little-endian) order.
+  template <typename T>
+  T scalar() {
+    T v{};
+    raw(&v, sizeof v);
+    return v;
+  }
+
   const char* data_;
   std::size_t size_;
   std::size_t pos_ = 0;
