@@ -18,6 +18,22 @@ using nlohmann::json;
 // JSON has no NaN/inf: those become null so every line parses.
 json number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
+json odometry_model_json(const lmf::odometry_model_t& m) {
+  return {{"translation_scale", number(m.translation_scale)},
+          {"rotation_scale", number(m.rotation_scale)},
+          {"heading_bias_rad_per_m", number(m.heading_bias_rad_per_m)},
+          {"x_step_m", number(m.x_step_m)},
+          {"x_per_m", number(m.x_per_m)},
+          {"y_step_m", number(m.y_step_m)},
+          {"y_per_m", number(m.y_per_m)},
+          {"phi_step_rad", number(m.phi_step_rad)},
+          {"phi_per_m", number(m.phi_per_m)},
+          {"phi_per_rad", number(m.phi_per_rad)},
+          {"phi_turn_distance", number(m.phi_turn_distance)},
+          {"increments_learned", m.increments_learned},
+          {"increments_downweighted", m.increments_downweighted}};
+}
+
 std::string fixed(double v, int decimals) {
   if (!std::isfinite(v)) return "-";
   char buffer[64];
@@ -76,6 +92,7 @@ void MonitorState::on_agent_status(const lmf::agent_status_t& msg, std::int64_t 
   row.covariance_ok = msg.covariance_ok;
   row.mission_done = msg.mission_done;
   row.global_pose = Pose2(msg.global_pose.x, msg.global_pose.y, msg.global_pose.phi);
+  row.odometry_model = msg.odometry_model;
   row.rejects = 0;
   // Saturating: the counts come off the network (a forged INT64_MAX must not overflow).
   constexpr std::int64_t kMaxCount = std::numeric_limits<std::int64_t>::max();
@@ -193,7 +210,8 @@ json MonitorState::to_json(std::int64_t now_utime) const {
                       {"rejects", r.rejects},
                       {"scan_acks", r.scan_acks},
                       {"last_scan_seq", r.last_scan_seq},
-                      {"local_map_acks", r.local_map_acks}});
+                      {"local_map_acks", r.local_map_acks},
+                      {"odometry_model", odometry_model_json(r.odometry_model)}});
   }
   j["robots"] = std::move(robots);
 
@@ -250,6 +268,14 @@ std::string MonitorState::table(std::int64_t now_utime) const {
         << pad_right(r.mission_done ? "yes" : "no", 4) << "  " << pad_right(r.covariance_ok ? "ok" : "BAD", 3) << "  "
         << pad_left(std::to_string(r.rejects), 3) << "  " << pad_left(fixed(r.global_pose.x, 2), 8) << ' '
         << pad_left(fixed(r.global_pose.y, 2), 8) << ' ' << pad_left(fixed(r.global_pose.phi, 3), 6) << '\n';
+  }
+  for (const auto& [id, r] : robots_) {
+    if (!r.have_status) continue;
+    const lmf::odometry_model_t& m = r.odometry_model;
+    out << "  robot " << id << " odometry: translation x" << fixed(m.translation_scale, 3) << ", rotation x"
+        << fixed(m.rotation_scale, 3) << ", heading sigma " << fixed(m.phi_step_rad * 180.0 / 3.14159265358979, 2)
+        << " deg/step + " << fixed(m.phi_per_m * 180.0 / 3.14159265358979, 2) << " deg/m (learned from "
+        << m.increments_learned << " matches, " << m.increments_downweighted << " glitches)\n";
   }
   out << '\n';
   if (!server_.have_status) {

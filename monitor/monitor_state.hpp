@@ -57,6 +57,7 @@ struct RobotRow {
   std::int64_t scan_acks = 0;        // scan_ack_t seen
   std::int64_t last_scan_seq = -1;   // from scan_ack_t
   std::int64_t local_map_acks = 0;   // local_map_ack_t seen for this robot
+  lmf::odometry_model_t odometry_model{};  // from the last status: the agent's learned odometry model
 };
 
 struct ServerRow {

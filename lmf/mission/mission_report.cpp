@@ -69,6 +69,22 @@ const RobotLog* log_of(const MissionInputs& inputs, int robot_id) {
 
 }  // namespace
 
+json odometry_model_json(const OdometryErrorModel& m, const OdometryLearningStats& stats) {
+  return {{"translation_scale", m.translation_scale},
+          {"rotation_scale", m.rotation_scale},
+          {"heading_bias_rad_per_m", m.heading_bias_rad_per_m},
+          {"x_step_m", m.x_step_m},
+          {"x_per_m", m.x_per_m},
+          {"y_step_m", m.y_step_m},
+          {"y_per_m", m.y_per_m},
+          {"phi_step_rad", m.phi_step_rad},
+          {"phi_per_m", m.phi_per_m},
+          {"phi_per_rad", m.phi_per_rad},
+          {"phi_turn_distance", m.phi_turn_distance},
+          {"increments_learned", stats.increments},
+          {"increments_downweighted", stats.downweighted}};
+}
+
 json fusion_report_json(const fusion::FusionReport& r) {
   json j = {{"robot_id", r.robot_id},
             {"seq", r.seq},
@@ -203,7 +219,8 @@ void write_mission_outputs(const std::filesystem::path& out, const OfflineMissio
                       {"segments_seen_through", r.segments_seen_through},
                       {"scan_timing", to_json(r.scan_timing)},
                       {"covariance_always_ok", r.covariance_always_ok},
-                      {"first_covariance_problem", r.first_covariance_problem}});
+                      {"first_covariance_problem", r.first_covariance_problem},
+                      {"odometry_model", odometry_model_json(r.odometry_model, r.odometry_learning)}});
   }
   report["robots"] = robots;
   report["fusion_timing"] = to_json(result.fusion_timing);
@@ -263,6 +280,10 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
                   r.scan_timing.max_ms, rs ? std::to_string(rs->ate.position_rmse_m).substr(0, 6).c_str() : "-",
                   rs ? std::to_string(rs->odometry_ate.position_rmse_m).substr(0, 6).c_str() : "-");
     s << line;
+  }
+  for (const RobotResult& r : result.robots) {
+    s << r.name << " odometry model: " << describe(r.odometry_model) << " (" << r.odometry_learning.increments
+      << " matched increments, " << r.odometry_learning.downweighted << " downweighted as glitches)\n";
   }
   std::size_t seen_through = 0;
   for (const RobotResult& r : result.robots) seen_through += r.segments_seen_through;

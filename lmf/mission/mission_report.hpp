@@ -32,6 +32,9 @@ struct MissionScore {
   std::optional<eval::MapError> map;  // against the true walls, when the inputs have them
 };
 
+// An agent's odometry model (learned or configured) as a JSON object.
+nlohmann::json odometry_model_json(const OdometryErrorModel& model, const OdometryLearningStats& stats);
+
 // One fusion's report as a JSON object (report.json of lmf-offline and lmf-server).
 nlohmann::json fusion_report_json(const fusion::FusionReport& report);
 

@@ -106,6 +106,8 @@ MissionResult OfflineMission::run() {
     r.joined = global_map_.is_joined(r.robot_id);
     r.trajectory = trajectories_.final_trajectory(global_map_, r.robot_id);
     r.scan_timing = timing_stats(r.scan_times_ms);
+    r.odometry_model = agents_[i].local_map.odometry_model();
+    r.odometry_learning = agents_[i].local_map.odometry_learning_stats();
   }
   return result_;
 }

@@ -51,6 +51,8 @@ struct RobotResult {
   TimingStats scan_timing;
   bool covariance_always_ok = true;     // every scan's covariance check passed
   std::string first_covariance_problem;
+  OdometryErrorModel odometry_model;    // the agent's learned model at the end
+  OdometryLearningStats odometry_learning;
 };
 
 struct SightingEvent {
