@@ -85,6 +85,14 @@ json odometry_model_json(const OdometryErrorModel& m, const OdometryLearningStat
           {"increments_downweighted", stats.downweighted}};
 }
 
+json consistency_json(const std::vector<LocalMapConsistency>& maps) {
+  json list = json::array();
+  for (const LocalMapConsistency& c : maps) {
+    list.push_back({{"seq", c.seq}, {"error_m", c.error_m}, {"error_rad", c.error_rad}, {"nees", c.nees}});
+  }
+  return list;
+}
+
 json fusion_report_json(const fusion::FusionReport& r) {
   json j = {{"robot_id", r.robot_id},
             {"seq", r.seq},
@@ -220,7 +228,8 @@ void write_mission_outputs(const std::filesystem::path& out, const OfflineMissio
                       {"scan_timing", to_json(r.scan_timing)},
                       {"covariance_always_ok", r.covariance_always_ok},
                       {"first_covariance_problem", r.first_covariance_problem},
-                      {"odometry_model", odometry_model_json(r.odometry_model, r.odometry_learning)}});
+                      {"odometry_model", odometry_model_json(r.odometry_model, r.odometry_learning)},
+                      {"local_map_consistency", consistency_json(r.local_map_consistency)}});
   }
   report["robots"] = robots;
   report["fusion_timing"] = to_json(result.fusion_timing);
@@ -279,6 +288,25 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
                   r.joined ? "yes" : "NO", r.scans, r.local_maps_fused, r.scan_timing.p50_ms, r.scan_timing.p99_ms,
                   r.scan_timing.max_ms, rs ? std::to_string(rs->ate.position_rmse_m).substr(0, 6).c_str() : "-",
                   rs ? std::to_string(rs->odometry_ate.position_rmse_m).substr(0, 6).c_str() : "-");
+    s << line;
+  }
+  for (const RobotResult& r : result.robots) {
+    if (r.local_map_consistency.empty()) continue;
+    std::vector<double> nees;
+    double worst_m = 0.0;
+    double worst_rad = 0.0;
+    for (const LocalMapConsistency& c : r.local_map_consistency) {
+      nees.push_back(c.nees);
+      worst_m = std::max(worst_m, c.error_m);
+      worst_rad = std::max(worst_rad, c.error_rad);
+    }
+    std::sort(nees.begin(), nees.end());
+    double mean = 0.0;
+    for (const double v : nees) mean += v / static_cast<double>(nees.size());
+    std::snprintf(line, sizeof line,
+                  "%s local maps vs reference: end-pose NEES mean %.1f, median %.1f (3 if consistent) over %zu "
+                  "maps; worst end error %.3f m, %.2f deg\n",
+                  r.name.c_str(), mean, nees[nees.size() / 2], nees.size(), worst_m, worst_rad * 180.0 / 3.14159265358979);
     s << line;
   }
   for (const RobotResult& r : result.robots) {
