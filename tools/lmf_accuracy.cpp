@@ -21,6 +21,8 @@
 #include <boost/program_options.hpp>
 #include <nlohmann/json.hpp>
 
+#include "tools/tool_support.hpp"
+
 namespace po = boost::program_options;
 using nlohmann::json;
 
@@ -240,19 +242,8 @@ int main(int argc, char** argv) {
       "markdown", po::value(&markdown_file), "write the table as markdown to this file")(
       "total-wall-s", po::value(&total_wall_s), "the whole run's wall time (recorded in the JSON)")(
       "note", po::value(&notes), "a line recorded in the JSON and under the markdown table (repeatable)");
-  po::variables_map vm;
-  try {
-    po::store(po::parse_command_line(argc, argv, options), vm);
-    po::notify(vm);
-  } catch (const std::exception& e) {
-    std::cerr << "lmf-accuracy: " << e.what() << "\nTry lmf-accuracy --help\n";
-    return 2;
-  }
-  if (vm.count("help") != 0u) {
-    std::cout << options << "\n";
-    return 0;
-  }
-  try {
+  if (const auto exit_code = lmf::tools::parse_command_line(argc, argv, options, "lmf-accuracy")) return *exit_code;
+  return lmf::tools::run_reporting_errors("lmf-accuracy", [&] {
     json rows = json::array();
     bool all_ok = true;
     double cpu = 0.0;
@@ -286,8 +277,5 @@ int main(int argc, char** argv) {
       write_file(markdown_file, md);
     }
     return all_ok ? 0 : 1;
-  } catch (const std::exception& e) {
-    std::cerr << "lmf-accuracy: " << e.what() << "\n";
-    return 1;
-  }
+  });
 }

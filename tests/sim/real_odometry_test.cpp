@@ -29,6 +29,14 @@ RealOdometryConfig noise_free() {
   return c;
 }
 
+// The default noise without glitches.
+RealOdometryConfig without_glitches() {
+  RealOdometryConfig c;
+  c.heading_glitch_rate_per_m = 0.0;
+  c.translation_glitch_rate_per_m = 0.0;
+  return c;
+}
+
 std::vector<Pose2> increments(RobotOdometry& odometry, const std::vector<Pose2>& truth) {
   std::vector<Pose2> out;
   for (const Pose2& u : truth) out.push_back(odometry.increment(u));
@@ -86,9 +94,7 @@ TEST(RealOdometry, NoiseFreeIncrementIsTheSystematicErrorExactly) {
 // The scale errors show in the mean of many noisy increments: the random part averages out.
 TEST(RealOdometry, ScaleErrorsShowInTheMean) {
   const RealOdometryErrors errors{1.03, 0.95, 0.0};
-  RealOdometryConfig config;  // default noise, no glitches (they have a non-zero mean)
-  config.heading_glitch_rate_per_m = 0.0;
-  config.translation_glitch_rate_per_m = 0.0;
+  const RealOdometryConfig config = without_glitches();  // glitches have a non-zero mean
   const RealOdometry odometry(config, errors);
   Rng rng(11);
   const Pose2 u(0.5, 0.0, 0.3);
@@ -131,9 +137,7 @@ TEST(RealOdometry, SystematicErrorsAreDrawnWithTheConfiguredSpread) {
 
 // Driving straight, the heading still wanders: per metre and per step, and slip moves it sideways.
 TEST(RealOdometry, HeadingNoiseAndSlipDoNotVanishWhenDrivingStraight) {
-  RealOdometryConfig config;
-  config.heading_glitch_rate_per_m = 0.0;
-  config.translation_glitch_rate_per_m = 0.0;
+  const RealOdometryConfig config = without_glitches();
   const RealOdometry odometry(config, RealOdometryErrors{});
   Rng rng(5);
   const Pose2 straight(0.5, 0.0, 0.0);
