@@ -51,6 +51,11 @@ double number_at(const json& j, const json::json_pointer& p) {
 
 json nullable(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
+// The number at `p` as report.json has it (an integer stays one), or null.
+json number_or_null(const json& j, const json::json_pointer& p) {
+  return j.contains(p) && j.at(p).is_number() ? j.at(p) : json(nullptr);
+}
+
 // One row of the table as JSON (every key always present; null where not known).
 json read_case(const std::string& name, const std::string& dir) {
   json row = {{"case", name}, {"dir", dir}};
@@ -79,8 +84,8 @@ json read_case(const std::string& name, const std::string& dir) {
   row["rpe_10m_m"] = nullable(number_at(report, P("/score/rpe_10m/translation_rmse_m")));
   row["rpe_10m_deg"] = nullable(number_at(report, P("/score/rpe_10m/rotation_rmse_deg")));
   row["map_rms_m"] = nullable(number_at(report, P("/map_error/rms_m")));
-  row["map_segments"] = nullable(number_at(report, P("/map_error/segments")));
-  row["segments_matching_no_wall"] = nullable(number_at(report, P("/map_error/unmatched_segments")));
+  row["map_segments"] = number_or_null(report, P("/map_error/segments"));
+  row["segments_matching_no_wall"] = number_or_null(report, P("/map_error/unmatched_segments"));
 
   // Odometry alone, for comparison: RMS over the robots of each robot's own aligned odometry ATE.
   double odo2 = 0.0;
