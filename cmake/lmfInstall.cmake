@@ -66,6 +66,10 @@ foreach(program ${LMF_PROGRAMS})
 endforeach()
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/config/ DESTINATION ${CMAKE_INSTALL_DATADIR}/lmf/config
   COMPONENT Runtime FILES_MATCHING PATTERN "*.json")
+# lmf-types.jar (lcmtypes/, when a JDK was found): share/java, where lcm-spy's users look.
+if(TARGET lmf_types_jar)
+  install(FILES ${LMF_TYPES_JAR} DESTINATION ${CMAKE_INSTALL_DATADIR}/java COMPONENT Runtime)
+endif()
 
 # Debian packages (cpack -G DEB).
 set(CPACK_PACKAGE_NAME lmf)

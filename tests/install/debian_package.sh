@@ -36,6 +36,9 @@ for f in bin/lmf-server bin/lmf-agent bin/lmf-player bin/lmf-monitor bin/lmf-off
          share/lmf/config/default.json share/lmf/config/sim.json; do
   grep -q "\./usr/$f\$" <<<"$contents" || fail "lmf lacks /usr/$f"
 done
+if [[ -f $build/lcmtypes/lmf-types.jar ]]; then  # built where a JDK and liblcm-java are
+  grep -q "\./usr/share/java/lmf-types.jar\$" <<<"$contents" || fail "lmf lacks /usr/share/java/lmf-types.jar"
+fi
 dev_contents=$(dpkg-deb -c "$dev")
 for f in lib/cmake/lmf/lmfConfig.cmake lib/liblmf_local_map.a include/lmf/local_map/local_map.hpp \
          include/lmf/pose2_t.hpp; do
