@@ -556,7 +556,9 @@ bool ServerNode::write_outputs(const LoopSnapshot& loop_side) const {
                      [](const StampedPose& a, const StampedPose& b) { return a.utime < b.utime; });
     io::write_trajectory(options_.out_dir / "trajectory.txt", all);
     fusion::write_map_json(map_, options_.out_dir / "map.json");
-    fusion::write_map_svg(map_, options_.out_dir / "map.svg", drawn);
+    fusion::MapSvgOptions svg;
+    svg.graph = options_.map_svg_graph;
+    fusion::write_map_svg(map_, options_.out_dir / "map.svg", drawn, svg);
 
     json report;
     report["source"] = "lmf-server";

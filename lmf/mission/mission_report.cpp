@@ -185,7 +185,8 @@ void write_trajectories(const std::filesystem::path& out,
 }
 
 void write_map_files(const std::filesystem::path& out, const fusion::GlobalMap& map,
-                     const std::map<std::string, std::vector<StampedPose>>& trajectories) {
+                     const std::map<std::string, std::vector<StampedPose>>& trajectories,
+                     const fusion::MapSvgOptions& svg) {
   std::filesystem::create_directories(out);
   fusion::write_map_json(map, out / "map.json");
   std::vector<fusion::MapTrajectory> paths;
@@ -195,17 +196,18 @@ void write_map_files(const std::filesystem::path& out, const fusion::GlobalMap& 
     for (const StampedPose& p : trajectory) path.poses.push_back(p.pose);
     paths.push_back(std::move(path));
   }
-  fusion::write_map_svg(map, out / "map.svg", paths);
+  fusion::write_map_svg(map, out / "map.svg", paths, svg);
 }
 
 void write_mission_outputs(const std::filesystem::path& out, const OfflineMission& mission,
-                           const MissionResult& result, const std::optional<MissionScore>& score) {
+                           const MissionResult& result, const std::optional<MissionScore>& score,
+                           const fusion::MapSvgOptions& svg) {
   std::map<std::string, std::vector<StampedPose>> trajectories;
   for (const RobotResult& robot : result.robots) {
     if (!robot.trajectory.empty()) trajectories[robot.name] = robot.trajectory;
   }
   write_trajectories(out, trajectories);
-  write_map_files(out, mission.global_map(), trajectories);
+  write_map_files(out, mission.global_map(), trajectories, svg);
 
   json report;
   report["inputs"] = mission.inputs().description;
