@@ -161,14 +161,16 @@ ScanReport LocalMap::process_scan(const LaserScan& scan) {
   const ScanMatcherConfig& matching = config_.scan_matching;
   ScanReport report;
   std::optional<Motion> motion;
-  if (matching.enabled && reference_scan_ && odometry_reference_ && finite(scan.odometry)) {
-    // Step 1 refined: the odometry increment as the prior of a scan match.
-    const Pose2 u = between(*odometry_reference_, scan.odometry);
+  const bool have_increment = odometry_reference_ && finite(scan.odometry);
+  const Pose2 u = have_increment ? between(*odometry_reference_, scan.odometry) : Pose2();
+  if (matching.enabled && !scan_history_.empty() && have_increment) {
+    // Step 1 refined: a scan match against the recent scans, the odometry
+    // increment as the centre of its search window and as its prior.
     const Eigen::Matrix3d Q = local_map::odometry_noise(u, config_);
     // (Q is singular only for a standing robot with zero noise floors: no prior, no match.)
     const bool prior_ok = Eigen::LLT<Eigen::Matrix3d>(Q).info() == Eigen::Success;
     const std::optional<ScanMatch> match =
-        prior_ok ? match_scans(*reference_scan_, scan_points(scan, matching), u, Q, matching) : std::nullopt;
+        prior_ok ? match_scans(scan_history_.reference(), scan_points(scan, matching), u, Q, matching) : std::nullopt;
     report.scan_match_tried = true;
     if (match) {
       report.scan_matched = true;
@@ -177,7 +179,9 @@ ScanReport LocalMap::process_scan(const LaserScan& scan) {
     }
   }
   report = update_with(scan.utime, scan.odometry, extract_segments(scan, config_.extraction), motion, report);  // step 2
-  if (matching.enabled) reference_scan_ = ReferenceScan::from(scan, matching);
+  // The history goes on from the matched increment; after the odometry's alone
+  // it restarts with this scan.
+  if (matching.enabled) scan_history_.add(scan, motion ? motion->u : u, motion.has_value());
   if (config_.see_through.enabled) {
     report.segments_seen_through = remove_seen_through(scan);
     report.map_segments = static_cast<int>(num_segments());
@@ -582,7 +586,7 @@ void LocalMap::resume(int64_t seq, int64_t origin_utime, const Pose2& origin_odo
   // ... with the odometry reference of that scan: update() predicts from it
   // (that scan's points are gone: no scan match for the first scan).
   odometry_reference_ = origin_odometry;
-  reference_scan_.reset();
+  scan_history_.clear();
 }
 
 }  // namespace lmf
