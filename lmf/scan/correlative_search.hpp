@@ -12,8 +12,9 @@
 // Pure, thread-safe.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
-#include <functional>
 #include <optional>
 #include <vector>
 
@@ -39,8 +40,14 @@ class LikelihoodField {
 
   double resolution_m() const { return resolution_m_; }
   int levels() const { return static_cast<int>(levels_.size()); }
-  // The cell holding p (may be outside the region).
-  Eigen::Vector2i cell(const Eigen::Vector2d& p) const;
+  // The cell holding p (may be outside the region; clamped far outside so the
+  // integer conversion stays defined, those cells read 0).
+  Eigen::Vector2i cell(const Eigen::Vector2d& p) const {
+    constexpr double kFar = 1e6;
+    const Eigen::Vector2d c = (p - origin_) / resolution_m_;
+    return {static_cast<int>(std::floor(std::clamp(c.x(), -kFar, kFar))),
+            static_cast<int>(std::floor(std::clamp(c.y(), -kFar, kFar)))};
+  }
   // 0..255; 0 outside.
   int value(int level, int ix, int iy) const {
     const int x = ix + padding_;
@@ -77,13 +84,21 @@ struct CorrelativeMatch {
   double score = 0.0;  // mean likelihood of the points placed with x, in [0, 1]
 };
 
+struct CorrelativeResult {
+  CorrelativeMatch best;
+  // Every pose of the window other than the best scoring at least
+  // contender_ratio times the best (the best's own neighbours among them): the
+  // caller decides which are distinct peaks.
+  std::vector<CorrelativeMatch> contenders;
+};
+
 // The pose of the window with the highest score, if that score exceeds
-// min_score; poses for which `excluded` returns true are skipped (the search
-// for a second, distinct peak). `points` in the scan's own frame.
-// Throws std::invalid_argument for a negative window or a non-positive angular step.
-std::optional<CorrelativeMatch> correlative_search(const LikelihoodField& field,
-                                                   const std::vector<Eigen::Vector2d>& points, const Pose2& centre,
-                                                   const CorrelativeWindow& window, double min_score,
-                                                   const std::function<bool(const Pose2&)>& excluded = {});
+// min_score, and its contenders. `points` in the scan's own frame.
+// Throws std::invalid_argument for a negative window, a non-positive angular
+// step or a contender_ratio outside (0, 1].
+std::optional<CorrelativeResult> correlative_search(const LikelihoodField& field,
+                                                    const std::vector<Eigen::Vector2d>& points, const Pose2& centre,
+                                                    const CorrelativeWindow& window, double min_score,
+                                                    double contender_ratio = 1.0);
 
 }  // namespace lmf

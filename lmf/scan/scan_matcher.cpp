@@ -86,6 +86,7 @@ void ScanMatcherConfig::validate() const {
           "finite and >= 0");
   require(std::isfinite(reference_voxel_m) && reference_voxel_m > 0.0, "reference_voxel_m", reference_voxel_m,
           "finite and > 0");
+  require(prior_alpha > 0.0 && prior_alpha < 1.0, "prior_alpha", prior_alpha, "in (0, 1)");
   require(std::isfinite(last_gate_m) && last_gate_m > 0.0, "last_gate_m", last_gate_m, "finite and > 0");
   require(std::isfinite(first_gate_m) && first_gate_m >= last_gate_m, "first_gate_m", first_gate_m,
           "finite and >= last_gate_m");
@@ -260,6 +261,7 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
                       config.model_noise_rad * config.model_noise_rad + turn_noise * turn_noise)
           .asDiagonal();
 
+  const double prior_k2 = spmap::chi2_threshold(3, config.prior_alpha);
   Refinement out;
   Pose2 x = x0;
   Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
@@ -305,8 +307,11 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
     const Pose2 r_pose = between(u_hat, x);
     const Eigen::Vector3d r(r_pose.x, r_pose.y, wrap_angle(r_pose.phi));
     const Eigen::Matrix3d J_r = prior_residual_jacobian(u_hat, x);
-    H = Lambda_widened + J_r.transpose() * Q_inv * J_r;
-    const Eigen::Vector3d gradient = widen * (laser_weight * g_laser) + J_r.transpose() * Q_inv * r;
+    const double d2 = r.dot(Q_inv * r);
+    const double w_prior = d2 <= prior_k2 ? 1.0 : std::sqrt(prior_k2 / d2);
+    out.match.prior_weight = w_prior;
+    H = Lambda_widened + w_prior * J_r.transpose() * Q_inv * J_r;
+    const Eigen::Vector3d gradient = widen * (laser_weight * g_laser) + w_prior * J_r.transpose() * Q_inv * r;
     const Eigen::Vector3d delta = -H.ldlt().solve(gradient);
     if (!delta.allFinite()) return std::nullopt;
     x = compose(x, Pose2(delta(0), delta(1), delta(2)));
@@ -344,7 +349,9 @@ CorrelativeWindow search_window(const std::vector<Eigen::Vector2d>& points, cons
   for (const Eigen::Vector2d& p : points) ranges.push_back(p.norm());
   const auto at = ranges.begin() + static_cast<std::ptrdiff_t>(0.9 * static_cast<double>(ranges.size() - 1));
   std::nth_element(ranges.begin(), at, ranges.end());
-  const double range = std::max(1.0, *at);
+  // Capped at 10 m: beyond, the step would shrink below 0.01 rad, which
+  // still moves points at 20 m by only 0.2 m, inside the first gate.
+  const double range = std::clamp(*at, 1.0, 10.0);
   return {config.search_window_m, config.search_window_rad, config.search_resolution_m / range};
 }
 
@@ -392,8 +399,10 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
   int levels = 1;
   while ((1 << (levels - 1)) < 2 * half_cells + 1) ++levels;
   const LikelihoodField field(A.points(), region, resolution, resolution, levels);
-  const std::optional<CorrelativeMatch> best = correlative_search(field, search_points, u_hat, window, config.min_overlap);
-  if (!best) return std::nullopt;
+  const std::optional<CorrelativeResult> search =
+      correlative_search(field, search_points, u_hat, window, config.min_overlap, config.ambiguity_ratio);
+  if (!search) return std::nullopt;
+  const CorrelativeMatch* best = &search->best;
 
   // Stage 2: the refinement from the search's best pose.
   std::optional<Refinement> refined = refine(A, B, best->x, u_hat, Q_inv, config);
@@ -405,13 +414,10 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
   // corridor) are the same peak: the prior decides those.
   const Eigen::Matrix3d M = refined->mean_point_information;
   const double separation2 = 4.0 * resolution * resolution;
-  const auto same_peak = [&](const Pose2& x) {
-    const Pose2 d = between(best->x, x);
+  for (const CorrelativeMatch& other : search->contenders) {
+    const Pose2 d = between(best->x, other.x);
     const Eigen::Vector3d delta(d.x, d.y, wrap_angle(d.phi));
-    return delta.dot(M * delta) <= separation2;
-  };
-  if (correlative_search(field, search_points, u_hat, window, config.ambiguity_ratio * best->score, same_peak)) {
-    return std::nullopt;
+    if (delta.dot(M * delta) > separation2) return std::nullopt;
   }
   refined->match.search_score = best->score;
   refined->match.search_pose = best->x;

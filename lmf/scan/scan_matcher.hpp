@@ -115,6 +115,12 @@ struct ScanMatcherConfig {
   double model_noise_m = 0.01;
   double model_noise_rad = 0.003;
   double model_noise_per_rad = 0.0;
+  // The prior is robust (Huber on its Mahalanobis distance d): beyond
+  // d² = chi2inv(1 - prior_alpha, 3) its information is scaled by
+  // sqrt(chi2inv) / d, so an odometry increment the laser proves wrong pulls
+  // the estimate less, and its covariance widens accordingly. Never a reason
+  // to refuse the match.
+  double prior_alpha = 0.01;
 
   // Throws std::invalid_argument naming the first invalid field and its value.
   void validate() const;
@@ -175,6 +181,7 @@ struct ScanMatch {
   // to the odometry increment, in û's frame (the perturbation p_u of û).
   Eigen::Vector3d prior_residual = Eigen::Vector3d::Zero();
   double prior_distance2 = 0.0;  // rᵀ Q⁻¹ r (reported; not a reason to refuse)
+  double prior_weight = 1.0;     // the robust prior's weight on Q⁻¹ (config.prior_alpha)
   int correspondences = 0;       // matched points at the last iteration
   int iterations = 0;
   double rms_m = 0.0;            // RMS point-to-line distance of the matched points

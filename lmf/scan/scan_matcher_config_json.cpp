@@ -28,6 +28,7 @@ void read_scan_matcher_config(io::JsonReader& reader, ScanMatcherConfig& config)
   reader.read("model_noise_m", config.model_noise_m, io::non_negative());
   reader.read("model_noise_rad", config.model_noise_rad, io::non_negative());
   reader.read("model_noise_per_rad", config.model_noise_per_rad, io::non_negative());
+  reader.read("prior_alpha", config.prior_alpha, io::in_open(0.0, 1.0));
 }
 
 }  // namespace lmf
