@@ -377,6 +377,7 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
   const double resolution = config.search_resolution_m;
   std::vector<Eigen::Vector2d> search_points;
   for (const std::size_t i : thinned(B, resolution)) search_points.push_back(B[i]);
+  if (search_points.empty()) return std::nullopt;  // none finite
   const CorrelativeWindow window = search_window(search_points, config);
   // The field covers where B's points can land within the window (and where A has points).
   Eigen::AlignedBox2d reach;

@@ -265,6 +265,9 @@ TEST(ScanMatcher, DegenerateInputGivesNoEstimate) {
   EXPECT_FALSE(match_scans(reference, scan_points(empty, config), u, Q, config).has_value());
   EXPECT_FALSE(match_scans(ReferenceScan::from(empty, config), scan_points(A, config), u, Q, config).has_value());
   EXPECT_FALSE(match_scans(ReferenceScan(), scan_points(A, config), u, Q, config).has_value());
+  // Non-finite points.
+  const std::vector<Eigen::Vector2d> nan_points(100, Eigen::Vector2d(std::nan(""), 1.0));
+  EXPECT_FALSE(match_scans(reference, nan_points, u, Q, config).has_value());
   // A handful of points.
   std::vector<Eigen::Vector2d> few = scan_points(A, config);
   few.resize(10);
