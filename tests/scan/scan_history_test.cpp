@@ -26,7 +26,7 @@ TEST(ScanHistory, PosesAreReExpressedInTheNewestFrameExactly) {
                                   Pose2(0.7, 1.1, 2.9),  Pose2(0.2, 1.0, -2.8),  Pose2(-0.4, 0.6, -1.9)};
   for (std::size_t k = 0; k < x_W.size(); ++k) {
     const Pose2 increment = k == 0 ? Pose2() : between(x_W[k - 1], x_W[k]);
-    history.add(one_point(2.0 + k, 0.5), increment, k > 0);
+    history.add(one_point(2.0 + static_cast<double>(k), 0.5), increment, k > 0);
     ASSERT_EQ(history.size(), std::min<std::size_t>(k + 1, 4));
     for (std::size_t i = 0; i < history.size(); ++i) {
       // Keyframe i is scan k - i.
@@ -40,7 +40,7 @@ TEST(ScanHistory, PosesAreReExpressedInTheNewestFrameExactly) {
     ASSERT_EQ(history.reference().size(), history.size());
     for (std::size_t i = 0; i < history.size(); ++i) {
       const std::size_t scan = k - i;
-      const Eigen::Vector2d world = x_W[scan].transform_point(Eigen::Vector2d(2.0 + scan, 0.5));
+      const Eigen::Vector2d world = x_W[scan].transform_point(Eigen::Vector2d(2.0 + static_cast<double>(scan), 0.5));
       const Eigen::Vector2d in_newest = inverse(x_W[k]).transform_point(world);
       EXPECT_TRUE(history.reference().points()[i].isApprox(in_newest, 1e-12));
       const Eigen::Vector2d normal = Eigen::Rotation2Dd(x_W[scan].phi - x_W[k].phi) * Eigen::Vector2d(-1.0, 0.0);
