@@ -75,6 +75,8 @@ int main(int argc, char** argv) {
        "mission config JSON; its global_map section configures the fusion (default: built-in defaults)")
       ("out", po::value<std::string>(&out_dir)->default_value(out_dir),
        "folder for map.json, map.svg, trajectory.txt, trajectories/robotN.txt, report.json")
+      ("map-graph", po::bool_switch(&options.map_svg_graph),
+       "draw the environment graph (submap nodes, consecutive and paired edges) in map.svg")
       ("first-robot", po::value<int>(&first_robot)->default_value(first_robot),
        "robot that joins at start with L = W; -1: the first local map received defines W")
       ("max-robots", po::value<int>(&options.max_robots)->default_value(options.max_robots),

@@ -33,11 +33,17 @@ std::int64_t wall_utime() {
       .count();
 }
 
-// The fusion's own validation failed (after runtime's passed): name a reason.
-runtime::RejectReason reason_of(std::string_view what) {
-  if (what.find("already") != std::string_view::npos) return runtime::RejectReason::kStaleSequence;
-  if (what.find("covariance") != std::string_view::npos) return runtime::RejectReason::kCovarianceNotPsd;
-  if (what.find("not finite") != std::string_view::npos) return runtime::RejectReason::kNonFinite;
+// The fusion's own validation failed (after runtime's passed): its typed reason
+// names the counter, whatever the message says.
+runtime::RejectReason reason_of(fusion::InvalidInput::Reason reason) {
+  using R = fusion::InvalidInput::Reason;
+  switch (reason) {
+    case R::kDuplicate: return runtime::RejectReason::kStaleSequence;
+    case R::kNotSymmetricPsd: return runtime::RejectReason::kCovarianceNotPsd;
+    case R::kNonFinite: return runtime::RejectReason::kNonFinite;
+    case R::kMalformed: return runtime::RejectReason::kWrongSize;
+    case R::kOutOfRange: return runtime::RejectReason::kOutOfRange;
+  }
   return runtime::RejectReason::kOutOfRange;
 }
 
@@ -316,8 +322,10 @@ void ServerNode::fuse_task(LocalMapSnapshot snapshot, Clock::time_point arrived)
     record_fusions(reports, wait_ms);
     for (const auto& r : reports) outcome->fused.emplace_back(r.robot_id, r.seq);
     outcome->queued_in_map = map_.is_queued(snapshot.robot_id, snapshot.seq);
-  } catch (const std::invalid_argument& e) {
-    outcome->rejection = runtime::Rejection{reason_of(e.what()), e.what()};
+  } catch (const fusion::InvalidInput& e) {
+    outcome->rejection = runtime::Rejection{reason_of(e.reason()), e.what()};
+  } catch (const std::invalid_argument& e) {  // from below the fusion's own checks: never fatal
+    outcome->rejection = runtime::Rejection{runtime::RejectReason::kOutOfRange, e.what()};
   }
   outcome->view = make_view();
   post_outcome(std::move(outcome));
@@ -334,8 +342,11 @@ void ServerNode::sighting_task(const runtime::Sighting& sighting, Clock::time_po
     record_fusions(result.fused, wait_ms);
     for (const auto& r : result.fused) outcome->fused.emplace_back(r.robot_id, r.seq);
     sightings_.push_back({sighting, mission::sighting_status_name(result.status)});
-  } catch (const std::invalid_argument& e) {
-    outcome->rejection = runtime::Rejection{reason_of(e.what()), e.what()};
+  } catch (const fusion::InvalidInput& e) {
+    outcome->rejection = runtime::Rejection{reason_of(e.reason()), e.what()};
+    sightings_.push_back({sighting, "rejected"});
+  } catch (const std::invalid_argument& e) {  // from below the fusion's own checks: never fatal
+    outcome->rejection = runtime::Rejection{runtime::RejectReason::kOutOfRange, e.what()};
     sightings_.push_back({sighting, "rejected"});
   }
   outcome->view = make_view();
@@ -545,7 +556,9 @@ bool ServerNode::write_outputs(const LoopSnapshot& loop_side) const {
                      [](const StampedPose& a, const StampedPose& b) { return a.utime < b.utime; });
     io::write_trajectory(options_.out_dir / "trajectory.txt", all);
     fusion::write_map_json(map_, options_.out_dir / "map.json");
-    fusion::write_map_svg(map_, options_.out_dir / "map.svg", drawn);
+    fusion::MapSvgOptions svg;
+    svg.graph = options_.map_svg_graph;
+    fusion::write_map_svg(map_, options_.out_dir / "map.svg", drawn, svg);
 
     json report;
     report["source"] = "lmf-server";

@@ -74,6 +74,7 @@ namespace lmf::server {
 struct ServerOptions {
   fusion::GlobalMapConfig global_map;
   std::filesystem::path out_dir = "out/server";
+  bool map_svg_graph = false;  // draw the environment graph in out_dir/map.svg (fusion::MapSvgOptions::graph)
   // Joins at start with L = W (zero covariance, local map 0). nullopt: the
   // first local map received defines W (GlobalMapConfig::first_robot_defines_world).
   std::optional<int> first_robot = 0;

@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 
 #include "lmf/io/svg.hpp"
+#include "lmf/io/svg_legend.hpp"
 
 namespace lmf::monitor {
 namespace {
@@ -17,6 +18,22 @@ using nlohmann::json;
 
 // JSON has no NaN/inf: those become null so every line parses.
 json number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+json odometry_model_json(const lmf::odometry_model_t& m) {
+  return {{"translation_scale", number(m.translation_scale)},
+          {"rotation_scale", number(m.rotation_scale)},
+          {"heading_bias_rad_per_m", number(m.heading_bias_rad_per_m)},
+          {"x_step_m", number(m.x_step_m)},
+          {"x_per_m", number(m.x_per_m)},
+          {"y_step_m", number(m.y_step_m)},
+          {"y_per_m", number(m.y_per_m)},
+          {"phi_step_rad", number(m.phi_step_rad)},
+          {"phi_per_m", number(m.phi_per_m)},
+          {"phi_per_rad", number(m.phi_per_rad)},
+          {"phi_turn_distance", number(m.phi_turn_distance)},
+          {"increments_learned", m.increments_learned},
+          {"increments_downweighted", m.increments_downweighted}};
+}
 
 std::string fixed(double v, int decimals) {
   if (!std::isfinite(v)) return "-";
@@ -43,6 +60,9 @@ double nice_step(double span, int target) {
   }
   return 10.0 * magnitude;
 }
+
+// The timing plot's lowest time (ms): faster updates are drawn there.
+constexpr double kTimingFloorMs = 0.01;
 
 const char* kPalette[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf"};
 
@@ -76,6 +96,7 @@ void MonitorState::on_agent_status(const lmf::agent_status_t& msg, std::int64_t 
   row.covariance_ok = msg.covariance_ok;
   row.mission_done = msg.mission_done;
   row.global_pose = Pose2(msg.global_pose.x, msg.global_pose.y, msg.global_pose.phi);
+  row.odometry_model = msg.odometry_model;
   row.rejects = 0;
   // Saturating: the counts come off the network (a forged INT64_MAX must not overflow).
   constexpr std::int64_t kMaxCount = std::numeric_limits<std::int64_t>::max();
@@ -84,7 +105,11 @@ void MonitorState::on_agent_status(const lmf::agent_status_t& msg, std::int64_t 
   }
   row.status_utime = msg.utime;
   if (msg.window_scans > 0) {
-    windows_[msg.robot_id].push_back({msg.utime, msg.scan_time_max_ms, msg.scan_time_p99_ms, msg.window_scans});
+    const auto acks = scan_ack_receipts_.find(msg.robot_id);
+    std::optional<std::int64_t> mission_utime;
+    if (acks != scan_ack_receipts_.end() && !acks->second.empty()) mission_utime = acks->second.back().scan_utime;
+    windows_[msg.robot_id].push_back(
+        {msg.utime, mission_utime, msg.scan_time_max_ms, msg.scan_time_p99_ms, msg.window_scans});
   }
 }
 
@@ -127,7 +152,7 @@ void MonitorState::on_scan_ack(const lmf::scan_ack_t& msg, std::int64_t receive_
   RobotRow& row = robot(msg.robot_id);
   ++row.scan_acks;
   row.last_scan_seq = std::max(row.last_scan_seq, msg.seq);
-  scan_ack_receipts_[msg.robot_id].push_back(receive_utime);
+  scan_ack_receipts_[msg.robot_id].push_back({receive_utime, msg.utime});
 }
 
 void MonitorState::on_local_map_ack(const lmf::local_map_ack_t& msg, std::int64_t receive_utime) {
@@ -136,32 +161,47 @@ void MonitorState::on_local_map_ack(const lmf::local_map_ack_t& msg, std::int64_
 }
 
 std::map<int, std::vector<TimingSample>> MonitorState::timing_series() const {
-  std::int64_t t0 = std::numeric_limits<std::int64_t>::max();
+  // Each sample's time (us): mission time where the robot acknowledged scans,
+  // else the status time; in double, as utimes come off the network.
+  std::map<int, std::vector<std::pair<double, TimingSample>>> stamped;
   for (const auto& [id, w] : windows_) {
-    if (!w.empty()) t0 = std::min(t0, w.front().utime);
-  }
-  for (const auto& [id, r] : scan_ack_receipts_) {
-    if (!windows_.count(id) && !r.empty()) t0 = std::min(t0, r.front());
-  }
-  std::map<int, std::vector<TimingSample>> out;
-  for (const auto& [id, w] : windows_) {
+    const bool by_scan = std::any_of(w.begin(), w.end(), [](const StatusWindow& s) { return s.mission_utime.has_value(); });
     for (const StatusWindow& s : w) {
-      // In double: utimes come off the network and their difference may not fit in int64.
-      out[id].push_back({(static_cast<double>(s.utime) - static_cast<double>(t0)) * 1e-6, s.max_ms, s.p99_ms});
+      if (by_scan && !s.mission_utime) continue;  // before its first ack: no scan to place it at
+      const double t = static_cast<double>(by_scan ? *s.mission_utime : s.utime);
+      stamped[id].push_back({t, {0.0, s.max_ms, s.p99_ms}});
     }
   }
   for (const auto& [id, r] : scan_ack_receipts_) {
     if (windows_.count(id)) continue;
     for (std::size_t i = 1; i < r.size(); ++i) {
-      out[id].push_back({(static_cast<double>(r[i]) - static_cast<double>(t0)) * 1e-6,
-                         (static_cast<double>(r[i]) - static_cast<double>(r[i - 1])) * 1e-3, -1.0});
+      stamped[id].push_back({static_cast<double>(r[i].scan_utime),
+                             {0.0, (static_cast<double>(r[i].receive_utime) - static_cast<double>(r[i - 1].receive_utime)) * 1e-3,
+                              -1.0}});
     }
   }
-  for (auto& [id, samples] : out) {
-    std::stable_sort(samples.begin(), samples.end(),
+  double t0 = std::numeric_limits<double>::infinity();
+  for (const auto& [id, samples] : stamped) {
+    for (const auto& [t, sample] : samples) t0 = std::min(t0, t);
+  }
+  std::map<int, std::vector<TimingSample>> out;
+  for (auto& [id, samples] : stamped) {
+    std::vector<TimingSample>& series = out[id];
+    for (auto& [t, sample] : samples) {
+      sample.time_s = (t - t0) * 1e-6;
+      series.push_back(sample);
+    }
+    std::stable_sort(series.begin(), series.end(),
                      [](const TimingSample& a, const TimingSample& b) { return a.time_s < b.time_s; });
   }
   return out;
+}
+
+bool MonitorState::timing_in_mission_time() const {
+  for (const auto& [id, w] : windows_) {
+    if (std::none_of(w.begin(), w.end(), [](const StatusWindow& s) { return s.mission_utime.has_value(); })) return false;
+  }
+  return true;
 }
 
 json MonitorState::to_json(std::int64_t now_utime) const {
@@ -193,7 +233,8 @@ json MonitorState::to_json(std::int64_t now_utime) const {
                       {"rejects", r.rejects},
                       {"scan_acks", r.scan_acks},
                       {"last_scan_seq", r.last_scan_seq},
-                      {"local_map_acks", r.local_map_acks}});
+                      {"local_map_acks", r.local_map_acks},
+                      {"odometry_model", odometry_model_json(r.odometry_model)}});
   }
   j["robots"] = std::move(robots);
 
@@ -251,6 +292,14 @@ std::string MonitorState::table(std::int64_t now_utime) const {
         << pad_left(std::to_string(r.rejects), 3) << "  " << pad_left(fixed(r.global_pose.x, 2), 8) << ' '
         << pad_left(fixed(r.global_pose.y, 2), 8) << ' ' << pad_left(fixed(r.global_pose.phi, 3), 6) << '\n';
   }
+  for (const auto& [id, r] : robots_) {
+    if (!r.have_status) continue;
+    const lmf::odometry_model_t& m = r.odometry_model;
+    out << "  robot " << id << " odometry: translation x" << fixed(m.translation_scale, 3) << ", rotation x"
+        << fixed(m.rotation_scale, 3) << ", heading sigma " << fixed(m.phi_step_rad * 180.0 / 3.14159265358979, 2)
+        << " deg/step + " << fixed(m.phi_per_m * 180.0 / 3.14159265358979, 2) << " deg/m (learned from "
+        << m.increments_learned << " matches, " << m.increments_downweighted << " glitches)\n";
+  }
   out << '\n';
   if (!server_.have_status) {
     out << "SERVER  (no status heard yet)\n";
@@ -300,54 +349,76 @@ void MonitorState::write_map_svg(const std::filesystem::path& file) const {
     svg.add_text(p + Eigen::Vector2d(0.3, 0.3), "robot " + std::to_string(id), label);
   }
   svg.end_group();
+  // global_map_t carries the segments only (the graph is counted, not sent):
+  // the server's own map.svg draws the environment graph with --map-graph.
+  io::SvgStyle robot_dot;
+  robot_dot.stroke = "none";
+  robot_dot.fill = "#555";
+  io::add_legend(svg,
+                 {{io::SvgLegendEntry::Mark::kLine, wall, "wall segment"},
+                  {io::SvgLegendEntry::Mark::kDot, robot_dot, "robot (global pose)"}},
+                 io::legend_right_of_bounds(svg));
   svg.add_scale_bar();
   svg.write(file);
 }
 
 void MonitorState::write_timing_svg(const std::filesystem::path& file) const {
   const auto series = timing_series();
+  // y: log10 of the time in ms, from 0.01 ms (a faster update is drawn there) to
+  // the decade above the largest time or the bound.
+  const auto y_of = [](double ms) { return std::log10(std::max(ms, kTimingFloorMs)); };
   double t_max = 1.0;
-  double v_max = kRealTimeBoundMs * 1.25;
+  double v_max = kRealTimeBoundMs;
   for (const auto& [id, samples] : series) {
     for (const TimingSample& s : samples) {
-      t_max = std::max(t_max, s.time_s);
-      if (std::isfinite(s.value_ms)) v_max = std::max(v_max, s.value_ms * 1.05);
+      if (std::isfinite(s.time_s)) t_max = std::max(t_max, s.time_s);
+      if (std::isfinite(s.value_ms)) v_max = std::max(v_max, s.value_ms);
     }
   }
-  // x: seconds, y: milliseconds, scaled to a ~900 x 400 px plot.
+  const double y_lo = y_of(kTimingFloorMs);
+  const double y_hi = std::ceil(y_of(v_max) + 1e-9);
+  const double y_span = y_hi - y_lo;
+  // x: seconds, y: decades, scaled to a ~900 x 400 px plot.
   io::SvgDocument svg(1.0, 40.0);
-  svg.set_scale(900.0 / t_max, 400.0 / v_max);
+  svg.set_scale(900.0 / t_max, 400.0 / y_span);
   svg.set_title("Elapsed time between consecutive updates (paper Fig. 8)");
-  svg.set_bounds(Eigen::Vector2d(-0.08 * t_max, -0.12 * v_max), Eigen::Vector2d(1.02 * t_max, 1.08 * v_max));
+  const auto at = [&](double t, double y) { return Eigen::Vector2d(t, y); };
 
   io::SvgStyle axis;
   axis.stroke = "#444";
   io::SvgStyle grid;
   grid.stroke = "#ddd";
+  io::SvgStyle minor = grid;
+  minor.stroke = "#f0f0f0";
   io::SvgTextStyle tick;
   tick.size_px = 10.0;
   tick.anchor = "middle";
   svg.begin_group("axes", "axes");
-  svg.add_line(Eigen::Vector2d(0, 0), Eigen::Vector2d(t_max, 0), axis);
-  svg.add_line(Eigen::Vector2d(0, 0), Eigen::Vector2d(0, v_max), axis);
+  svg.add_line(at(0, y_lo), at(t_max, y_lo), axis);
+  svg.add_line(at(0, y_lo), at(0, y_hi), axis);
   const double t_step = nice_step(t_max, 8);
   for (double t = 0.0; t <= t_max + 1e-9; t += t_step) {
-    svg.add_line(Eigen::Vector2d(t, 0), Eigen::Vector2d(t, v_max), grid);
-    svg.add_text(Eigen::Vector2d(t, -0.05 * v_max), fixed(t, t_step < 1.0 ? 1 : 0), tick);
+    svg.add_line(at(t, y_lo), at(t, y_hi), grid);
+    svg.add_text(at(t, y_lo - 0.05 * y_span), fixed(t, t_step < 1.0 ? 1 : 0), tick);
   }
-  const double v_step = nice_step(v_max, 6);
   io::SvgTextStyle ytick = tick;
   ytick.anchor = "end";
-  for (double v = 0.0; v <= v_max + 1e-9; v += v_step) {
-    svg.add_line(Eigen::Vector2d(0, v), Eigen::Vector2d(t_max, v), grid);
-    svg.add_text(Eigen::Vector2d(-0.01 * t_max, v), fixed(v, 0), ytick);
+  for (double decade = y_lo; decade <= y_hi + 1e-9; decade += 1.0) {
+    svg.add_line(at(0, decade), at(t_max, decade), grid);
+    const double ms = std::pow(10.0, decade);
+    svg.add_text(at(-0.01 * t_max, decade - 0.02 * y_span), ms < 1.0 ? fixed(ms, static_cast<int>(-decade)) : fixed(ms, 0),
+                 ytick);
+    for (double m : {2.0, 5.0}) {
+      if (decade + std::log10(m) < y_hi) svg.add_line(at(0, decade + std::log10(m)), at(t_max, decade + std::log10(m)), minor);
+    }
   }
   io::SvgTextStyle label;
   label.size_px = 12.0;
   label.anchor = "middle";
-  svg.add_text(Eigen::Vector2d(0.5 * t_max, -0.1 * v_max), "mission time (s)", label);
+  svg.add_text(at(0.5 * t_max, y_lo - 0.1 * y_span),
+               timing_in_mission_time() ? "mission time (s, log time of the scans)" : "time (s, status messages)", label);
   label.anchor = "start";
-  svg.add_text(Eigen::Vector2d(-0.07 * t_max, 1.04 * v_max), "update time (ms)", label);
+  svg.add_text(at(-0.07 * t_max, y_hi + 0.04 * y_span), "update time (ms, log scale)", label);
   svg.end_group();
 
   io::SvgStyle bound;
@@ -355,23 +426,24 @@ void MonitorState::write_timing_svg(const std::filesystem::path& file) const {
   bound.stroke_width_px = 1.5;
   bound.dash_px = "8 4";
   svg.begin_group("200 ms bound", "bound");
-  svg.add_line(Eigen::Vector2d(0, kRealTimeBoundMs), Eigen::Vector2d(t_max, kRealTimeBoundMs), bound);
+  svg.add_line(at(0, y_of(kRealTimeBoundMs)), at(t_max, y_of(kRealTimeBoundMs)), bound);
   io::SvgTextStyle bound_label;
   bound_label.color = "red";
-  bound_label.anchor = "end";
-  svg.add_text(Eigen::Vector2d(t_max, kRealTimeBoundMs + 0.02 * v_max), "200 ms (5 Hz laser)", bound_label);
+  bound_label.anchor = "start";
+  svg.add_text(at(0.01 * t_max, y_of(kRealTimeBoundMs) + 0.02 * y_span), "200 ms (5 Hz laser)", bound_label);
   svg.end_group();
 
+  std::vector<io::SvgLegendEntry> legend;
   std::size_t colour = 0;
-  double legend_y = 1.0 * v_max;
   for (const auto& [id, samples] : series) {
     const std::string c = kPalette[colour++ % std::size(kPalette)];
     svg.begin_group("robot " + std::to_string(id), "robot" + std::to_string(id));
     std::vector<Eigen::Vector2d> line;
     std::vector<Eigen::Vector2d> p99;
     for (const TimingSample& s : samples) {
-      if (std::isfinite(s.value_ms)) line.emplace_back(s.time_s, s.value_ms);
-      if (s.p99_ms >= 0.0 && std::isfinite(s.p99_ms)) p99.emplace_back(s.time_s, s.p99_ms);
+      if (!std::isfinite(s.time_s)) continue;
+      if (std::isfinite(s.value_ms)) line.push_back(at(s.time_s, y_of(s.value_ms)));
+      if (s.p99_ms >= 0.0 && std::isfinite(s.p99_ms)) p99.push_back(at(s.time_s, y_of(s.p99_ms)));
     }
     io::SvgStyle style;
     style.stroke = c;
@@ -382,22 +454,24 @@ void MonitorState::write_timing_svg(const std::filesystem::path& file) const {
       dot.fill = c;
       svg.add_dot(line.front(), 2.0, dot);
     }
+    const bool from_status = !samples.empty() && samples.front().p99_ms >= 0.0;
+    legend.push_back({io::SvgLegendEntry::Mark::kLine, style,
+                      "robot " + std::to_string(id) + (from_status ? ": max per status window" : ": time between scan acks")});
     if (p99.size() >= 2) {
       style.dash_px = "2 2";
       style.stroke_opacity = 0.6;
       svg.add_polyline(p99, style);
+      legend.push_back({io::SvgLegendEntry::Mark::kLine, style, "robot " + std::to_string(id) + ": p99 per window"});
     }
-    io::SvgTextStyle legend;
-    legend.color = c;
-    legend.anchor = "end";
-    const bool from_status = !samples.empty() && samples.front().p99_ms >= 0.0;
-    svg.add_text(Eigen::Vector2d(t_max, legend_y),
-                 "robot " + std::to_string(id) +
-                     (from_status ? ": max per status window (dashed: p99)" : ": time between scan acks"),
-                 legend);
-    legend_y -= 0.05 * v_max;
     svg.end_group();
   }
+  legend.push_back({io::SvgLegendEntry::Mark::kLine, bound, "real-time bound"});
+  // Right of the plot, level with its top.
+  const double legend_x = 1.03 * t_max;
+  io::add_legend(svg, legend, at(legend_x, y_hi));
+  const double legend_width = io::legend_size_px(legend).x() / svg.pixels_per_unit_x();
+  svg.set_bounds(Eigen::Vector2d(-0.08 * t_max, y_lo - 0.12 * y_span),
+                 Eigen::Vector2d(legend_x + legend_width + 0.01 * t_max, y_hi + 0.08 * y_span));
   svg.write(file);
 }
 

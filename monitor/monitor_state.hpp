@@ -10,7 +10,12 @@
 // by the updates over the mission with the 200 ms real-time bound of a 5 Hz
 // laser marked. Its source, per robot: the agent_status_t windows (largest and
 // p99 per-scan time of each window) when the robot sent any, else the time
-// between consecutive scan_ack_t receptions.
+// between consecutive scan_ack_t receptions. Its x axis is mission time, the
+// log time of the scans: a window is placed at the scan the robot acknowledged
+// last before its status (scan_ack_t carries the scan's utime), an ack gap at
+// its scan; a robot that acknowledged no scan is placed by its status times.
+// The y axis is logarithmic (0.01 ms .. above the bound), so sub-millisecond
+// per-scan times are as readable as the 200 ms bound.
 //
 // Not thread-safe (the monitor has one thread).
 #pragma once
@@ -57,6 +62,7 @@ struct RobotRow {
   std::int64_t scan_acks = 0;        // scan_ack_t seen
   std::int64_t last_scan_seq = -1;   // from scan_ack_t
   std::int64_t local_map_acks = 0;   // local_map_ack_t seen for this robot
+  lmf::odometry_model_t odometry_model{};  // from the last status: the agent's learned odometry model
 };
 
 struct ServerRow {
@@ -77,7 +83,7 @@ struct ServerRow {
 
 // One point of the timing plot.
 struct TimingSample {
-  double time_s = 0.0;    // since the first sample of any robot
+  double time_s = 0.0;    // since the first sample of any robot: mission (log) time, see the header
   double value_ms = 0.0;  // largest per-scan time of a window, or gap between acks
   double p99_ms = -1.0;   // < 0 when unknown (scan_ack source)
 };
@@ -104,6 +110,8 @@ class MonitorState {
 
   // Per robot, time-ordered samples for the timing plot (see header).
   std::map<int, std::vector<TimingSample>> timing_series() const;
+  // True when every robot of timing_series() is placed in mission time (each acknowledged a scan).
+  bool timing_in_mission_time() const;
 
   // One object: {"utime", "messages", "rejected", "robots": [...], "server": {...} | null,
   // "global_map": {...} | null}.
@@ -119,6 +127,7 @@ class MonitorState {
  private:
   struct StatusWindow {
     std::int64_t utime = 0;
+    std::optional<std::int64_t> mission_utime;  // the robot's last acknowledged scan then
     double max_ms = 0.0;
     double p99_ms = 0.0;
     int window_scans = 0;
@@ -138,7 +147,11 @@ class MonitorState {
   std::optional<GlobalMapSummary> global_map_;
   std::int64_t global_map_version_ = 0;
   std::map<int, std::vector<StatusWindow>> windows_;            // per robot, from agent_status_t
-  std::map<int, std::vector<std::int64_t>> scan_ack_receipts_;  // per robot, receive times (us)
+  struct AckReceipt {
+    std::int64_t receive_utime = 0;
+    std::int64_t scan_utime = 0;  // the acknowledged scan's (log) time
+  };
+  std::map<int, std::vector<AckReceipt>> scan_ack_receipts_;  // per robot
   std::map<std::string, std::int64_t> rejected_;
   std::map<std::string, std::int64_t> per_channel_;
   std::int64_t messages_ = 0;

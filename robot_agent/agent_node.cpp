@@ -430,6 +430,7 @@ void AgentNode::publish_status() {
   msg.covariance_ok = window_covariance_ok_;
   const std::optional<Pose2> pose = global_pose();
   msg.global_pose = rt::to_message(pose.value_or(Pose2()));
+  msg.odometry_model = rt::to_message(local_map_.odometry_model(), local_map_.odometry_learning_stats());
   msg.mission_done = mission_done();
   for (const auto& [reason, count] : all_rejects().nonzero()) {
     msg.reject_reasons.push_back(reason);

@@ -90,7 +90,10 @@ int main(int argc, char** argv) {
             << (agent.mission_done() ? ", mission done" : agent.mission_ended() ? ", mission end received" : "")
             << "; scan matches " << c.scans_matched << "/" << c.scans_match_tried << "; segments seen through "
             << c.segments_seen_through << "; per-scan time p50 " << timing.p50_ms << " ms, p99 " << timing.p99_ms << " ms, max " << timing.max_ms
-            << " ms\n";
+            << " ms\n"
+          << kProgram << " " << robot_id << ": odometry model: " << lmf::describe(agent.local_map().odometry_model())
+          << " (" << agent.local_map().odometry_learning_stats().increments << " matched increments, "
+          << agent.local_map().odometry_learning_stats().downweighted << " downweighted as glitches)\n";
   std::cerr << summary.str() << std::flush;
   return 0;
 }

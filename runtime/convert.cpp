@@ -360,6 +360,24 @@ lmf::pose2_t to_message(const Pose2& pose) {
   return msg;
 }
 
+lmf::odometry_model_t to_message(const OdometryErrorModel& m, const OdometryLearningStats& stats) {
+  lmf::odometry_model_t msg;
+  msg.translation_scale = static_cast<float>(m.translation_scale);
+  msg.rotation_scale = static_cast<float>(m.rotation_scale);
+  msg.heading_bias_rad_per_m = static_cast<float>(m.heading_bias_rad_per_m);
+  msg.x_step_m = static_cast<float>(m.x_step_m);
+  msg.x_per_m = static_cast<float>(m.x_per_m);
+  msg.y_step_m = static_cast<float>(m.y_step_m);
+  msg.y_per_m = static_cast<float>(m.y_per_m);
+  msg.phi_step_rad = static_cast<float>(m.phi_step_rad);
+  msg.phi_per_m = static_cast<float>(m.phi_per_m);
+  msg.phi_per_rad = static_cast<float>(m.phi_per_rad);
+  msg.phi_turn_distance = static_cast<float>(m.phi_turn_distance);
+  msg.increments_learned = static_cast<std::int64_t>(stats.increments);
+  msg.increments_downweighted = static_cast<std::int64_t>(stats.downweighted);
+  return msg;
+}
+
 // ---- laser scan ----------------------------------------------------------------------
 
 Checked<RobotScan> from_message(const lmf::laser_scan_t& msg, const DecodeLimits& limits) {

@@ -35,9 +35,11 @@
 #include "lmf/global_map_t.hpp"
 #include "lmf/laser_scan_t.hpp"
 #include "lmf/local_map/local_map_snapshot.hpp"
+#include "lmf/local_map/odometry_model.hpp"
 #include "lmf/local_map_ack_t.hpp"
 #include "lmf/local_map_t.hpp"
 #include "lmf/mission_end_t.hpp"
+#include "lmf/odometry_model_t.hpp"
 #include "lmf/pose2_t.hpp"
 #include "lmf/scan_ack_t.hpp"
 #include "lmf/server_status_t.hpp"
@@ -101,6 +103,9 @@ std::optional<Rejection> check_covariance(const Eigen::MatrixXd& P, std::string_
 // ---- 2. LCM messages <-> core values ----------------------------------------
 Checked<Pose2> from_message(const lmf::pose2_t& msg, const DecodeLimits& limits = {});
 lmf::pose2_t to_message(const Pose2& pose);
+
+// An agent's odometry model for its status (values become float).
+lmf::odometry_model_t to_message(const OdometryErrorModel& model, const OdometryLearningStats& stats);
 
 Checked<RobotScan> from_message(const lmf::laser_scan_t& msg, const DecodeLimits& limits = {});
 lmf::laser_scan_t to_message(const RobotScan& scan);  // ranges and angles become float

@@ -14,6 +14,7 @@ packages=(
   libgtest-dev libgmock-dev
   libbenchmark-dev
   iproute2 util-linux
+  dpkg-dev file  # cpack -G DEB (tests/install): dpkg-shlibdeps, file
 )
 # --fuzz: also clang and its libFuzzer runtime, for the optional libFuzzer
 # build of tests/fuzz (scripts/fuzz.sh --libfuzzer); lmf-fuzz needs neither.

@@ -39,7 +39,8 @@ int main(int argc, char** argv) {
       "sim", po::value(&sim_dir), "an lmf-sim output folder (logs, ground truth, sightings)")(
       "config", po::value(&config_file), "JSON config (sections local_map, global_map, sighting_noise)")(
       "seed", po::value(&seed), "seed of the sighting noise (overrides the config's)")(
-      "out", po::value(&out), "output folder (created)");
+      "out", po::value(&out), "output folder (created)")(
+      "map-graph", "draw the environment graph (submap nodes, consecutive and paired edges) in map.svg");
   po::variables_map vm;
   try {
     po::store(po::parse_command_line(argc, argv, options), vm);
@@ -67,7 +68,9 @@ int main(int argc, char** argv) {
     lmf::mission::OfflineMission mission(config, std::move(inputs));
     const lmf::mission::MissionResult result = mission.run();
     const auto score = lmf::mission::score_mission(result, mission.inputs(), mission.global_map());
-    lmf::mission::write_mission_outputs(out, mission, result, score);
+    lmf::fusion::MapSvgOptions svg;
+    svg.graph = vm.count("map-graph") != 0u;
+    lmf::mission::write_mission_outputs(out, mission, result, score, svg);
     std::cout << lmf::mission::summarize(mission, result, score) << "wrote " << out
               << "/{trajectory.txt, trajectories/, map.json, map.svg, report.json}\n";
   } catch (const std::exception& e) {

@@ -10,6 +10,7 @@
 
 #include <boost/program_options.hpp>
 
+#include "lmf/io/config.hpp"
 #include "lmf/sim/mission.hpp"
 #include "lmf/sim/mission_writer.hpp"
 
@@ -24,7 +25,11 @@ constexpr const char* kAbout =
     "dead-end side corridors, rooms with doors; the seed changes the layout details), drives N robots\n"
     "along corridor centrelines at constant speed (smooth corners, in-place turns at dead ends and in\n"
     "rooms), simulates a 180 deg laser (ray cast, Gaussian range noise; other robots and optional\n"
-    "people appear as discs) and odometry with noise proportional to the motion, and records\n"
+    "people appear as discs) and odometry (--odometry proportional: noise proportional to the motion,\n"
+    "the paper's model; --odometry real: like a real robot's wheel odometry, with per-robot scale errors\n"
+    "of translation and rotation, a heading bias, lateral slip, heading noise per metre and per step and\n"
+    "occasional glitches, see lmf/sim/odometry.hpp; --odometry-config FILE overrides its parameters from\n"
+    "a JSON object with the RealOdometryConfig field names), and records\n"
     "robot-robot sightings (within range, in the observer's 180 deg view, no wall in between; at most\n"
     "one per ordered pair per interval).\n"
     "\n"
@@ -41,6 +46,29 @@ std::string text(const T& value) {
   return out.str();
 }
 
+// A JSON object of RealOdometryConfig fields (every key optional, unknown keys are errors).
+lmf::sim::RealOdometryConfig read_real_odometry_config(const std::string& file) {
+  lmf::io::JsonReader r = lmf::io::JsonReader::from_file(file);
+  lmf::sim::RealOdometryConfig c;
+  r.read("translation_scale_sigma", c.translation_scale_sigma);
+  r.read("rotation_scale_sigma", c.rotation_scale_sigma);
+  r.read("heading_bias_sigma_rad_per_m", c.heading_bias_sigma_rad_per_m);
+  r.read("translation_noise_fraction", c.translation_noise_fraction);
+  r.read("rotation_noise_fraction", c.rotation_noise_fraction);
+  r.read("heading_noise_rad2_per_m", c.heading_noise_rad2_per_m);
+  r.read("heading_noise_per_step_rad", c.heading_noise_per_step_rad);
+  r.read("slip_per_m", c.slip_per_m);
+  r.read("slip_per_rad", c.slip_per_rad);
+  r.read("heading_glitch_rate_per_m", c.heading_glitch_rate_per_m);
+  r.read("heading_glitch_min_rad", c.heading_glitch_min_rad);
+  r.read("heading_glitch_max_rad", c.heading_glitch_max_rad);
+  r.read("translation_glitch_rate_per_m", c.translation_glitch_rate_per_m);
+  r.read("translation_glitch_min_m", c.translation_glitch_min_m);
+  r.read("translation_glitch_max_m", c.translation_glitch_max_m);
+  lmf::io::finish_and_validate(r, c);
+  return c;
+}
+
 struct Options {
   lmf::sim::MissionConfig config;
   std::string out;
@@ -52,6 +80,8 @@ bool parse(int argc, char** argv, Options& o) {
   double odometry_noise = c.odometry.translation_fraction;
   uint64_t seed = c.seed;
   std::size_t beams = c.laser.num_beams;
+  std::string odometry_model = lmf::sim::odometry_model_name(c.odometry_model);
+  std::string odometry_config;
   po::options_description desc("Options");
   desc.add_options()
       ("help,h", "print this help and exit")
@@ -66,8 +96,12 @@ bool parse(int argc, char** argv, Options& o) {
        "standard deviation of the range noise (m)")
       ("max-range-m", po::value(&c.laser.max_range_m)->default_value(c.laser.max_range_m, text(c.laser.max_range_m)),
        "laser max range (m); a beam with no wall within it reads exactly this (\"no return\")")
+      ("odometry", po::value(&odometry_model)->default_value(odometry_model),
+       "odometry model: proportional (the paper's) or real (a real robot's wheel odometry)")
+      ("odometry-config", po::value(&odometry_config),
+       "JSON file of the real model's parameters (RealOdometryConfig fields; with --odometry real)")
       ("odometry-noise", po::value(&odometry_noise)->default_value(odometry_noise, text(odometry_noise)),
-       "odometry noise: standard deviation per metre of translation and per radian of rotation (fraction)")
+       "proportional odometry noise: standard deviation per metre of translation and per radian of rotation (fraction)")
       ("odometry-drift-rad-per-m",
        po::value(&c.odometry.heading_drift_rad_per_m)->default_value(c.odometry.heading_drift_rad_per_m, text(c.odometry.heading_drift_rad_per_m)),
        "extra heading noise standard deviation per metre travelled")
@@ -90,6 +124,13 @@ bool parse(int argc, char** argv, Options& o) {
   c.odometry.translation_fraction = odometry_noise;
   c.odometry.rotation_fraction = odometry_noise;
   c.robots_visible_in_scans = !vm["hide-robots"].as<bool>();
+  c.odometry_model = lmf::sim::parse_odometry_model(odometry_model);
+  if (!odometry_config.empty()) {
+    if (c.odometry_model != lmf::sim::OdometryModel::kReal) {
+      throw std::invalid_argument("--odometry-config needs --odometry real");
+    }
+    c.real_odometry = read_real_odometry_config(odometry_config);
+  }
   c.validate();
   return true;
 }
@@ -97,11 +138,18 @@ bool parse(int argc, char** argv, Options& o) {
 void print_summary(const lmf::sim::Mission& m, const std::string& out) {
   std::printf("lmf-sim: seed %llu, %d robot(s), %.0f s -> %s\n", static_cast<unsigned long long>(m.config.seed),
               m.config.num_robots, m.config.duration_s, out.c_str());
+  std::printf("  odometry: %s\n", lmf::sim::odometry_model_name(m.config.odometry_model));
   std::printf("  world: loop %.1f m, %zu wall faces, %zu rooms\n", m.world.loop_length_m, m.world.walls.size(),
               m.world.rooms.size());
   for (const auto& r : m.robots) {
     std::printf("  robot%d: %zu scans, %.1f m travelled (odometry %.1f m) -> robot%d.log, robot%d.gt\n", r.id,
                 r.scans.size(), r.distance_m, r.odometry_distance_m, r.id, r.id);
+    if (m.config.odometry_model == lmf::sim::OdometryModel::kReal) {
+      std::printf("          systematic odometry errors: translation scale %.4f, rotation scale %.4f, heading bias "
+                  "%.4f rad/m\n",
+                  r.odometry_errors.translation_scale, r.odometry_errors.rotation_scale,
+                  r.odometry_errors.heading_bias_rad_per_m);
+    }
   }
   std::printf("  sightings: %zu -> sightings.json; also walls.json, world.svg, mission.json\n", m.sightings.size());
 }

@@ -2,9 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <map>
 #include <stdexcept>
+
+#include "lmf/io/svg_legend.hpp"
 
 namespace lmf::fusion {
 namespace {
@@ -210,6 +213,51 @@ io::SvgDocument map_to_svg(const GlobalMap& map, const std::vector<MapTrajectory
     }
     doc.end_group();
   }
+  // The legend, right of the map: one row per layer drawn.
+  std::vector<io::SvgLegendEntry> legend;
+  io::SvgStyle wall;
+  wall.stroke_width_px = 2.0;
+  legend.push_back({io::SvgLegendEntry::Mark::kLine, wall, "wall segment"});
+  if (options.sigma_bands) {
+    io::SvgStyle band;
+    band.stroke = "none";
+    band.fill = "#1f77b4";
+    band.fill_opacity = 0.2;
+    char label[64];
+    std::snprintf(label, sizeof label, "%g-sigma lateral band", options.band_sigmas);
+    legend.push_back({io::SvgLegendEntry::Mark::kPatch, band, label});
+  }
+  for (std::size_t t = 0; t < trajectories.size(); ++t) {
+    io::SvgStyle style;
+    style.stroke = trajectories[t].color.empty() ? palette()[t % palette().size()] : trajectories[t].color;
+    style.stroke_width_px = 1.2;
+    legend.push_back({io::SvgLegendEntry::Mark::kLine, style,
+                      trajectories[t].label.empty() ? "trajectory " + std::to_string(t) : trajectories[t].label});
+  }
+  if (options.graph && !submaps.empty()) {
+    io::SvgStyle consecutive;
+    consecutive.stroke = "#2ca02c";
+    consecutive.stroke_opacity = 0.6;
+    io::SvgStyle paired = consecutive;
+    paired.stroke = "#d62728";
+    paired.dash_px = "4 3";
+    io::SvgStyle node;
+    node.stroke = "none";
+    node.fill = "#d62728";
+    node.fill_opacity = 0.6;
+    legend.push_back({io::SvgLegendEntry::Mark::kDot, node, "graph node (submap)"});
+    legend.push_back({io::SvgLegendEntry::Mark::kLine, consecutive, "graph edge: consecutive"});
+    legend.push_back({io::SvgLegendEntry::Mark::kLine, paired, "graph edge: paired"});
+  }
+  if (options.frames) {
+    io::SvgStyle submap;
+    submap.stroke = "#555";
+    io::SvgStyle robot;
+    robot.fill = "#555";
+    legend.push_back({io::SvgLegendEntry::Mark::kPatch, submap, "submap frame"});
+    legend.push_back({io::SvgLegendEntry::Mark::kPatch, robot, "robot frame (R<id>)"});
+  }
+  io::add_legend(doc, legend, io::legend_right_of_bounds(doc));
   doc.add_scale_bar();
   return doc;
 }

@@ -9,8 +9,8 @@
 //   robots:   id, seq (local map whose origin the frame is), frame (x_WL), covariance 3x3
 //   graph:    nodes [submap ids], edges [{a, b, kind: "consecutive" | "paired"}]
 //
-// map.svg layers: trajectories, 2-sigma bands, segments, environment graph,
-// submap frames, robot frames, scale bar.
+// map.svg layers: trajectories, 2-sigma bands, environment graph (optional, off
+// by default), segments, submap frames, robot frames, legend, scale bar.
 #pragma once
 
 #include <filesystem>
@@ -43,7 +43,7 @@ struct MapSvgOptions {
   std::string title = "lmf global map";
   bool sigma_bands = true;   // the band_sigmas envelope of each segment's lateral error
   double band_sigmas = 2.0;
-  bool graph = true;         // environment graph (nodes at the submap frames)
+  bool graph = false;        // environment graph (nodes at the submap frames); off: it hides the walls
   bool frames = true;        // submap and robot frames
 };
 

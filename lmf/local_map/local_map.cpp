@@ -9,6 +9,7 @@
 #include <utility>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
 #include "lmf/local_map/local_map_measurements.hpp"
@@ -36,8 +37,10 @@ bool usable(const ObservedSegment& e) {
 
 }  // namespace
 
-LocalMap::LocalMap(const LocalMapConfig& config, int robot_id) : config_(config), robot_id_(robot_id) {
-  config_.validate();
+LocalMap::LocalMap(const LocalMapConfig& config, int robot_id)
+    : config_(config),
+      robot_id_(robot_id),
+      odometry_learner_((config.validate(), local_map::odometry_prior(config)), config.odometry_learning) {
   pairing_threshold_ = spmap::chi2_threshold(2, config_.pairing_alpha);
   robot_ = map_.add(EntityKind::kRobot, Pose2());
 }
@@ -73,7 +76,8 @@ EntityId LocalMap::add_segment_for_test(const Pose2& x_LS, double length_m, cons
 
 void LocalMap::predict(const Pose2& u) {
   if (!finite(u)) throw std::invalid_argument("LocalMap::predict: non-finite odometry increment");
-  predict(u, local_map::odometry_noise(u, config_));
+  const OdometryErrorModel& model = odometry_model();
+  predict(model.corrected(u), model.covariance(u));
 }
 
 void LocalMap::predict(const Pose2& u, const Eigen::Matrix3d& Q) {
@@ -126,7 +130,7 @@ ScanReport LocalMap::update_with(int64_t utime, const Pose2& odometry, const std
   // Step 1: predict with the odometry increment since the previous scan (or
   // the scan match that refined it).
   if (motion) {
-    predict(motion->u, motion->Q);
+    predict(motion->u, motion->Q);  // (process_scan: the match, or the corrected odometry)
   } else if (odometry_reference_) {
     predict(between(*odometry_reference_, odometry));
   }
@@ -165,17 +169,24 @@ ScanReport LocalMap::process_scan(const LaserScan& scan) {
   const Pose2 u = have_increment ? between(*odometry_reference_, scan.odometry) : Pose2();
   if (matching.enabled && !scan_history_.empty() && have_increment) {
     // Step 1 refined: a scan match against the recent scans, the odometry
-    // increment as the centre of its search window and as its prior.
-    const Eigen::Matrix3d Q = local_map::odometry_noise(u, config_);
+    // increment corrected by the learned model as the centre of its search
+    // window and as its prior; the match teaches the model.
+    const OdometryErrorModel& model = odometry_model();
+    const Pose2 u_bar = model.corrected(u);
+    const Eigen::Matrix3d Q = model.covariance(u);
     // (Q is singular only for a standing robot with zero noise floors: no prior, no match.)
     const bool prior_ok = Eigen::LLT<Eigen::Matrix3d>(Q).info() == Eigen::Success;
     const std::optional<ScanMatch> match =
-        prior_ok ? match_scans(scan_history_.reference(), scan_points(scan, matching), u, Q, matching) : std::nullopt;
+        prior_ok ? match_scans(scan_history_.reference(), scan_points(scan, matching), u_bar, Q, matching)
+                 : std::nullopt;
     report.scan_match_tried = true;
     if (match) {
       report.scan_matched = true;
       report.scan_match_points = match->correspondences;
       motion = Motion{match->x_AB, match->covariance};
+      if (config_.odometry_learning.enabled) {
+        report.odometry_learning_weight = odometry_learner_.observe(u, match->x_AB, match->laser_information);
+      }
     }
   }
   report = update_with(scan.utime, scan.odometry, extract_segments(scan, config_.extraction), motion, report);  // step 2

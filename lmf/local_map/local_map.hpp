@@ -39,6 +39,7 @@
 #include "lmf/geometry/pose2.hpp"
 #include "lmf/local_map/local_map_config.hpp"
 #include "lmf/local_map/local_map_snapshot.hpp"
+#include "lmf/local_map/odometry_model.hpp"
 #include "lmf/scan/laser_scan.hpp"
 #include "lmf/scan/observed_segment.hpp"
 #include "lmf/scan/scan_history.hpp"
@@ -61,6 +62,9 @@ struct ScanReport {
   bool scan_match_tried = false;
   bool scan_matched = false;
   int scan_match_points = 0;  // points matched (when scan_matched)
+  // Its robust weight in the odometry model learner (LocalMapConfig::odometry_learning;
+  // 0 when not learned from; below 1/2: the odometry disagreed like a glitch).
+  double odometry_learning_weight = 0.0;
 
   // Step 3: every (observation, map segment) combination is a tried pairing; the
   // overlap test runs first, then the individual chi2(2) test on those that overlap.
@@ -114,8 +118,9 @@ class LocalMap {
   ScanReport process_scan(const LaserScan& scan);
 
   // Step 1 alone, with the odometry increment u = between(odom_prev, odom_now)
-  // (m, rad) and the odometry noise model. update() calls it; public for tests
-  // and experiments.
+  // (m, rad) and the current odometry model (odometry_model(): the learned one,
+  // or the configured prior): the increment corrected for its systematic error
+  // and its covariance. update() calls it; public for tests and experiments.
   void predict(const Pose2& u);
   // The same with an increment known better than the odometry's (a scan match):
   // Q is the covariance of its perturbation p_u (u_true = u ⊕ p_u).
@@ -145,6 +150,11 @@ class LocalMap {
 
   // Symmetry and positive semidefiniteness of P (LocalMapConfig::covariance_tolerance).
   spmap::CovarianceHealth check_covariance() const;
+
+  // The odometry error model the prediction uses: learned from the scan matches
+  // (LocalMapConfig::odometry_learning) since construction; kept across reset().
+  const OdometryErrorModel& odometry_model() const { return odometry_learner_.model(); }
+  const OdometryLearningStats& odometry_learning_stats() const { return odometry_learner_.stats(); }
 
   const LocalMapConfig& config() const { return config_; }
   int robot_id() const { return robot_id_; }
@@ -206,6 +216,7 @@ class LocalMap {
   int64_t seq_ = 0;
   spmap::StochasticMap map_;
   spmap::EntityId robot_ = 0;
+  OdometryModelLearner odometry_learner_;
   std::optional<Pose2> odometry_reference_;
   // The last scans with their poses relative to the newest (scan_matching.enabled):
   // the reference of step 1's match. Relative to the robot, so reset() keeps it.

@@ -48,6 +48,7 @@ void LocalMapConfig::validate() const {
   require(max_segments > 0, "max_segments", max_segments, "> 0");
   require(finite_nonnegative(covariance_tolerance), "covariance_tolerance", covariance_tolerance,
           "finite and >= 0");
+  odometry_learning.validate();
   extraction.validate();
   scan_matching.validate();
   see_through.validate();

@@ -4,6 +4,7 @@
 
 #include <cstddef>
 
+#include "lmf/local_map/odometry_model.hpp"
 #include "lmf/scan/scan_matcher.hpp"
 #include "lmf/scan/see_through.hpp"
 #include "lmf/scan/segment_extraction.hpp"
@@ -11,7 +12,8 @@
 namespace lmf {
 
 struct LocalMapConfig {
-  // --- Step 1: odometry noise. The increment u = between(odom_prev, odom_now)
+  // --- Step 1: odometry noise: the PRIOR of the learned odometry model
+  // (odometry_learning below; with learning off, the model used). The increment u = between(odom_prev, odom_now)
   // has its perturbation p_u (in the frame of the new pose, u_true = û ⊕ p_u)
   // Gaussian with independent standard deviations proportional to the motion
   // of that step (paper §IV: 6–8 % error; datasets/README.md: 8 % of translation,
@@ -89,6 +91,13 @@ struct LocalMapConfig {
   // segments it still costs about as much as the rest of the scan update.
   double covariance_tolerance = 1e-9;
   std::size_t covariance_check_interval = 1;
+
+  // Step 1 learned (beyond the paper; on by default): the agent estimates its
+  // own odometry error model (systematic scales and heading bias, noise per step,
+  // per metre and per radian) from the disagreement between the odometry and the
+  // scan matches, starting from the prior above, and predicts with it
+  // (odometry_model.hpp).
+  OdometryLearningConfig odometry_learning;
 
   // Segment extraction used by LocalMap::process_scan (step 2).
   ExtractionConfig extraction;

@@ -36,6 +36,17 @@ void read_local_map_config(io::JsonReader& reader, LocalMapConfig& config) {
   if (io::JsonReader* scan_matching = reader.optional_section("scan_matching")) {
     read_scan_matcher_config(*scan_matching, config.scan_matching);
   }
+  if (io::JsonReader* learning = reader.optional_section("odometry_learning")) {
+    OdometryLearningConfig& c = config.odometry_learning;
+    learning->read("enabled", c.enabled);
+    learning->read("prior_increments", c.prior_increments, io::positive());
+    learning->read("memory_increments", c.memory_increments, io::at_least(1.0));
+    learning->read("sweeps_per_increment", c.sweeps_per_increment, io::at_least(1.0));
+    learning->read("student_dof", c.student_dof, io::positive());
+    learning->read("scale_prior_std", c.scale_prior_std, io::positive());
+    learning->read("heading_bias_prior_std_rad_per_m", c.heading_bias_prior_std_rad_per_m, io::positive());
+    learning->read("max_scale_error", c.max_scale_error, io::in_open(0.0, 1.0));
+  }
   if (io::JsonReader* see_through = reader.optional_section("see_through")) {
     see_through->read("enabled", config.see_through.enabled);
     see_through->read("margin_m", config.see_through.margin_m, io::positive());

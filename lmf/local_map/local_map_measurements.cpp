@@ -39,18 +39,15 @@ PredictionJacobians prediction_jacobians(const Pose2& x_LR, const Pose2& u) {
   return out;
 }
 
-Eigen::Matrix3d odometry_noise(const Pose2& u, const LocalMapConfig& config) {
+OdometryErrorModel odometry_prior(const LocalMapConfig& config) {
   // Proportional odometry error (paper §IV; LocalMapConfig, step 1).
-  const double d = std::hypot(u.x, u.y);
-  const double sigma_xy = config.odom_translation_noise_ratio * d;
-  const double sigma_phi = config.odom_rotation_noise_ratio * std::abs(u.phi) + config.odom_drift_rad_per_m * d;
-  const double floor_m2 = config.odom_noise_floor_m * config.odom_noise_floor_m;
-  const double floor_rad2 = config.odom_noise_floor_rad * config.odom_noise_floor_rad;
-  Eigen::Matrix3d Q = Eigen::Matrix3d::Zero();
-  Q(0, 0) = sigma_xy * sigma_xy + floor_m2;
-  Q(1, 1) = sigma_xy * sigma_xy + floor_m2;
-  Q(2, 2) = sigma_phi * sigma_phi + floor_rad2;
-  return Q;
+  return OdometryErrorModel::proportional(config.odom_translation_noise_ratio, config.odom_rotation_noise_ratio,
+                                          config.odom_drift_rad_per_m, config.odom_noise_floor_m,
+                                          config.odom_noise_floor_rad);
+}
+
+Eigen::Matrix3d odometry_noise(const Pose2& u, const LocalMapConfig& config) {
+  return odometry_prior(config).covariance(u);
 }
 
 spmap::ImplicitMeasurement pairing_measurement(const spmap::StochasticMap& map, spmap::EntityId segment,

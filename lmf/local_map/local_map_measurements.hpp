@@ -27,7 +27,9 @@ struct PredictionJacobians {
 };
 PredictionJacobians prediction_jacobians(const Pose2& x_LR, const Pose2& u);
 
-// Step 1, Q = Cov(p_u) for an odometry increment u (LocalMapConfig, step 1): diagonal.
+// Step 1, the configured odometry model (the learner's prior; LocalMapConfig, step 1)
+// and its Q = Cov(p_u) for an odometry increment u: diagonal.
+OdometryErrorModel odometry_prior(const LocalMapConfig& config);
 Eigen::Matrix3d odometry_noise(const Pose2& u, const LocalMapConfig& config);
 
 // Step 3, the implicit measurement of observation E on map segment S

@@ -69,6 +69,30 @@ const RobotLog* log_of(const MissionInputs& inputs, int robot_id) {
 
 }  // namespace
 
+json odometry_model_json(const OdometryErrorModel& m, const OdometryLearningStats& stats) {
+  return {{"translation_scale", m.translation_scale},
+          {"rotation_scale", m.rotation_scale},
+          {"heading_bias_rad_per_m", m.heading_bias_rad_per_m},
+          {"x_step_m", m.x_step_m},
+          {"x_per_m", m.x_per_m},
+          {"y_step_m", m.y_step_m},
+          {"y_per_m", m.y_per_m},
+          {"phi_step_rad", m.phi_step_rad},
+          {"phi_per_m", m.phi_per_m},
+          {"phi_per_rad", m.phi_per_rad},
+          {"phi_turn_distance", m.phi_turn_distance},
+          {"increments_learned", stats.increments},
+          {"increments_downweighted", stats.downweighted}};
+}
+
+json consistency_json(const std::vector<LocalMapConsistency>& maps) {
+  json list = json::array();
+  for (const LocalMapConsistency& c : maps) {
+    list.push_back({{"seq", c.seq}, {"error_m", c.error_m}, {"error_rad", c.error_rad}, {"nees", c.nees}});
+  }
+  return list;
+}
+
 json fusion_report_json(const fusion::FusionReport& r) {
   json j = {{"robot_id", r.robot_id},
             {"seq", r.seq},
@@ -161,7 +185,8 @@ void write_trajectories(const std::filesystem::path& out,
 }
 
 void write_map_files(const std::filesystem::path& out, const fusion::GlobalMap& map,
-                     const std::map<std::string, std::vector<StampedPose>>& trajectories) {
+                     const std::map<std::string, std::vector<StampedPose>>& trajectories,
+                     const fusion::MapSvgOptions& svg) {
   std::filesystem::create_directories(out);
   fusion::write_map_json(map, out / "map.json");
   std::vector<fusion::MapTrajectory> paths;
@@ -171,17 +196,18 @@ void write_map_files(const std::filesystem::path& out, const fusion::GlobalMap& 
     for (const StampedPose& p : trajectory) path.poses.push_back(p.pose);
     paths.push_back(std::move(path));
   }
-  fusion::write_map_svg(map, out / "map.svg", paths);
+  fusion::write_map_svg(map, out / "map.svg", paths, svg);
 }
 
 void write_mission_outputs(const std::filesystem::path& out, const OfflineMission& mission,
-                           const MissionResult& result, const std::optional<MissionScore>& score) {
+                           const MissionResult& result, const std::optional<MissionScore>& score,
+                           const fusion::MapSvgOptions& svg) {
   std::map<std::string, std::vector<StampedPose>> trajectories;
   for (const RobotResult& robot : result.robots) {
     if (!robot.trajectory.empty()) trajectories[robot.name] = robot.trajectory;
   }
   write_trajectories(out, trajectories);
-  write_map_files(out, mission.global_map(), trajectories);
+  write_map_files(out, mission.global_map(), trajectories, svg);
 
   json report;
   report["inputs"] = mission.inputs().description;
@@ -203,7 +229,9 @@ void write_mission_outputs(const std::filesystem::path& out, const OfflineMissio
                       {"segments_seen_through", r.segments_seen_through},
                       {"scan_timing", to_json(r.scan_timing)},
                       {"covariance_always_ok", r.covariance_always_ok},
-                      {"first_covariance_problem", r.first_covariance_problem}});
+                      {"first_covariance_problem", r.first_covariance_problem},
+                      {"odometry_model", odometry_model_json(r.odometry_model, r.odometry_learning)},
+                      {"local_map_consistency", consistency_json(r.local_map_consistency)}});
   }
   report["robots"] = robots;
   report["fusion_timing"] = to_json(result.fusion_timing);
@@ -263,6 +291,29 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
                   r.scan_timing.max_ms, rs ? std::to_string(rs->ate.position_rmse_m).substr(0, 6).c_str() : "-",
                   rs ? std::to_string(rs->odometry_ate.position_rmse_m).substr(0, 6).c_str() : "-");
     s << line;
+  }
+  for (const RobotResult& r : result.robots) {
+    if (r.local_map_consistency.empty()) continue;
+    std::vector<double> nees;
+    double worst_m = 0.0;
+    double worst_rad = 0.0;
+    for (const LocalMapConsistency& c : r.local_map_consistency) {
+      nees.push_back(c.nees);
+      worst_m = std::max(worst_m, c.error_m);
+      worst_rad = std::max(worst_rad, c.error_rad);
+    }
+    std::sort(nees.begin(), nees.end());
+    double mean = 0.0;
+    for (const double v : nees) mean += v / static_cast<double>(nees.size());
+    std::snprintf(line, sizeof line,
+                  "%s local maps vs reference: end-pose NEES mean %.1f, median %.1f (3 if consistent) over %zu "
+                  "maps; worst end error %.3f m, %.2f deg\n",
+                  r.name.c_str(), mean, nees[nees.size() / 2], nees.size(), worst_m, worst_rad * 180.0 / 3.14159265358979);
+    s << line;
+  }
+  for (const RobotResult& r : result.robots) {
+    s << r.name << " odometry model: " << describe(r.odometry_model) << " (" << r.odometry_learning.increments
+      << " matched increments, " << r.odometry_learning.downweighted << " downweighted as glitches)\n";
   }
   std::size_t seen_through = 0;
   for (const RobotResult& r : result.robots) seen_through += r.segments_seen_through;

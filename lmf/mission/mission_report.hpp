@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "lmf/eval/trajectory_error.hpp"
+#include "lmf/fusion/map_export.hpp"
 #include "lmf/mission/offline_mission.hpp"
 
 namespace lmf::mission {
@@ -32,6 +33,9 @@ struct MissionScore {
   std::optional<eval::MapError> map;  // against the true walls, when the inputs have them
 };
 
+// An agent's odometry model (learned or configured) as a JSON object.
+nlohmann::json odometry_model_json(const OdometryErrorModel& model, const OdometryLearningStats& stats);
+
 // One fusion's report as a JSON object (report.json of lmf-offline and lmf-server).
 nlohmann::json fusion_report_json(const fusion::FusionReport& report);
 
@@ -50,14 +54,16 @@ std::optional<MissionScore> score_mission(const MissionResult& result, const Mis
 void write_trajectories(const std::filesystem::path& out,
                         const std::map<std::string, std::vector<StampedPose>>& trajectories);
 
-// Writes OUT/map.json and OUT/map.svg (with the trajectories drawn).
+// Writes OUT/map.json and OUT/map.svg (with the trajectories drawn, in `svg`'s layers).
 void write_map_files(const std::filesystem::path& out, const fusion::GlobalMap& map,
-                     const std::map<std::string, std::vector<StampedPose>>& trajectories);
+                     const std::map<std::string, std::vector<StampedPose>>& trajectories,
+                     const fusion::MapSvgOptions& svg = {});
 
 // Writes OUT/trajectory.txt, OUT/trajectories/NAME.txt, OUT/map.json,
 // OUT/map.svg and OUT/report.json. Throws std::runtime_error on I/O errors.
 void write_mission_outputs(const std::filesystem::path& out, const OfflineMission& mission,
-                           const MissionResult& result, const std::optional<MissionScore>& score);
+                           const MissionResult& result, const std::optional<MissionScore>& score,
+                           const fusion::MapSvgOptions& svg = {});
 
 // The one-screen summary.
 std::string summarize(const OfflineMission& mission, const MissionResult& result,

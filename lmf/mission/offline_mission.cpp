@@ -1,5 +1,6 @@
 #include "lmf/mission/offline_mission.hpp"
 
+#include "lmf/local_map/consistency.hpp"
 #include "lmf/mission/mission_report.hpp"
 
 #include <algorithm>
@@ -106,6 +107,8 @@ MissionResult OfflineMission::run() {
     r.joined = global_map_.is_joined(r.robot_id);
     r.trajectory = trajectories_.final_trajectory(global_map_, r.robot_id);
     r.scan_timing = timing_stats(r.scan_times_ms);
+    r.odometry_model = agents_[i].local_map.odometry_model();
+    r.odometry_learning = agents_[i].local_map.odometry_learning_stats();
   }
   return result_;
 }
@@ -128,8 +131,30 @@ void OfflineMission::ship(Agent& agent, RobotResult& result) {
   LocalMapSnapshot snapshot = agent.local_map.snapshot();
   agent.local_map.reset();
   ++result.local_maps_shipped;
+  check_consistency(snapshot, result);
   trajectories_.add(snapshot);
   record(global_map_.fuse(snapshot));  // lockstep: fused before the next scan
+}
+
+void OfflineMission::check_consistency(const LocalMapSnapshot& snapshot, RobotResult& result) const {
+  const auto ref = inputs_.reference.find(snapshot.robot_id);
+  if (ref == inputs_.reference.end() || ref->second.empty() || snapshot.covariance.rows() < 3) return;
+  // The reference pose at a scan time (the reference is matched to scans by time).
+  const auto pose_at = [&](std::int64_t utime) -> std::optional<Pose2> {
+    const auto it = std::lower_bound(ref->second.begin(), ref->second.end(), utime,
+                                     [](const StampedPose& p, std::int64_t t) { return p.utime < t; });
+    if (it == ref->second.end() || it->utime != utime) return std::nullopt;
+    return it->pose;
+  };
+  const std::optional<Pose2> start = pose_at(snapshot.first_utime);
+  const std::optional<Pose2> end = pose_at(snapshot.last_utime);
+  if (!start || !end) return;
+  const Pose2 truth = between(*start, *end);
+  const std::optional<double> nees = pose_nees(snapshot.x_LR, snapshot.covariance.topLeftCorner<3, 3>(), truth);
+  if (!nees) return;
+  const Pose2 e = between(snapshot.x_LR, truth);
+  result.local_map_consistency.push_back(
+      {snapshot.seq, std::hypot(e.x, e.y), std::abs(wrap_angle(e.phi)), *nees});
 }
 
 void OfflineMission::record(const std::vector<fusion::FusionReport>& reports) {

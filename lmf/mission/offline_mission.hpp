@@ -38,6 +38,15 @@ struct TimingStats {
 };
 TimingStats timing_stats(std::vector<double> durations_ms);
 
+// One shipped local map's end pose x_LR against the reference (issue of
+// consistency: the fusion trusts P_RR), when the inputs have a reference.
+struct LocalMapConsistency {
+  std::int64_t seq = 0;
+  double error_m = 0.0;    // |translation| of x̂_LR ⊖ x_LR(true)
+  double error_rad = 0.0;  // |heading| of it
+  double nees = 0.0;       // with P_RR (3 dof; mean 3 when consistent)
+};
+
 struct RobotResult {
   int robot_id = 0;
   std::string name;
@@ -51,6 +60,9 @@ struct RobotResult {
   TimingStats scan_timing;
   bool covariance_always_ok = true;     // every scan's covariance check passed
   std::string first_covariance_problem;
+  std::vector<LocalMapConsistency> local_map_consistency;  // shipped maps with a reference and P_RR > 0
+  OdometryErrorModel odometry_model;    // the agent's learned model at the end
+  OdometryLearningStats odometry_learning;
 };
 
 struct SightingEvent {
@@ -89,6 +101,7 @@ class OfflineMission {
 
   void process_scan(Agent& agent, RobotResult& result);
   void ship(Agent& agent, RobotResult& result);
+  void check_consistency(const LocalMapSnapshot& snapshot, RobotResult& result) const;
   void record(const std::vector<fusion::FusionReport>& reports);
   void apply_sighting(const SightingInput& sighting);
 

@@ -64,6 +64,7 @@ void MissionConfig::validate() const {
   laser.validate();
   motion.validate();
   odometry.validate();
+  real_odometry.validate();
   require(0.5 * world.door_width_m >= motion.wall_margin_m,
           "motion.wall_margin_m must not exceed half of world.door_width_m (robots drive through doors)");
 }
@@ -121,7 +122,9 @@ Mission simulate_mission(const MissionConfig& config) {
   for (std::size_t i = 0; i < n; ++i) {
     RobotRun& run = mission.robots[i];
     Rng laser_rng(derive_seed(config.seed, kLaserStream + i));
-    Rng odometry_rng(derive_seed(config.seed, kOdometryStream + i));
+    RobotOdometry odometry(config.odometry_model, config.odometry, config.real_odometry,
+                           derive_seed(config.seed, kOdometryStream + i));
+    run.odometry_errors = odometry.errors();
     Pose2 x_OR;
     for (std::size_t k = 0; k < times[i].size(); ++k) {
       const double t = times[i][k];
@@ -142,7 +145,7 @@ Mission simulate_mission(const MissionConfig& config) {
         x_OR = x_WR;  // the odometry frame starts at the true start pose
       } else {
         const Pose2 u = between(run.true_poses.back(), x_WR);
-        const Pose2 x_OR_next = compose(x_OR, noisy_increment(u, config.odometry, odometry_rng));
+        const Pose2 x_OR_next = compose(x_OR, odometry.increment(u));
         run.distance_m += std::hypot(u.x, u.y);
         run.odometry_distance_m += std::hypot(x_OR_next.x - x_OR.x, x_OR_next.y - x_OR.y);
         x_OR = x_OR_next;

@@ -48,7 +48,9 @@ struct MissionConfig {
   WorldConfig world;
   LaserConfig laser;
   MotionConfig motion;
-  OdometryNoiseConfig odometry;
+  OdometryModel odometry_model = OdometryModel::kProportional;
+  OdometryNoiseConfig odometry;        // the proportional model's noise
+  RealOdometryConfig real_odometry;    // the real-robot model's (odometry_model == kReal)
   SightingConfig sightings;
   PeopleConfig people;
   // Throws std::invalid_argument naming the bad field.
@@ -62,6 +64,7 @@ struct RobotRun {
   Trajectory trajectory;         // the continuous true motion; time 0 = start_time_s
   double distance_m = 0.0;       // true distance travelled over the scans
   double odometry_distance_m = 0.0;  // the same from the odometry poses
+  RealOdometryErrors odometry_errors;  // its systematic odometry errors (identity under kProportional)
 };
 
 // Robot `observed` seen by robot `observer` at one of the observer's scans (noise-free).

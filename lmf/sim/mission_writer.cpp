@@ -79,8 +79,33 @@ void write_json(const std::filesystem::path& file, const json& j) {
 
 std::string robot_name(int id) { return "robot" + std::to_string(id); }
 
+json real_odometry_json(const RealOdometryConfig& r) {
+  return {{"translation_scale_sigma", fixed(r.translation_scale_sigma)},
+          {"rotation_scale_sigma", fixed(r.rotation_scale_sigma)},
+          {"heading_bias_sigma_rad_per_m", fixed(r.heading_bias_sigma_rad_per_m)},
+          {"translation_noise_fraction", fixed(r.translation_noise_fraction)},
+          {"rotation_noise_fraction", fixed(r.rotation_noise_fraction)},
+          {"heading_noise_rad2_per_m", fixed(r.heading_noise_rad2_per_m)},
+          {"heading_noise_per_step_rad", fixed(r.heading_noise_per_step_rad)},
+          {"slip_per_m", fixed(r.slip_per_m)},
+          {"slip_per_rad", fixed(r.slip_per_rad)},
+          {"heading_glitch_rate_per_m", fixed(r.heading_glitch_rate_per_m)},
+          {"heading_glitch_min_rad", fixed(r.heading_glitch_min_rad)},
+          {"heading_glitch_max_rad", fixed(r.heading_glitch_max_rad)},
+          {"translation_glitch_rate_per_m", fixed(r.translation_glitch_rate_per_m)},
+          {"translation_glitch_min_m", fixed(r.translation_glitch_min_m)},
+          {"translation_glitch_max_m", fixed(r.translation_glitch_max_m)},
+          {"model",
+           "per robot s_t=1+N(0,translation_scale_sigma^2), s_r=1+N(0,rotation_scale_sigma^2), "
+           "b=N(0,heading_bias_sigma_rad_per_m^2); per increment (lmf/sim/odometry.hpp): "
+           "dx=s_t dx+N(0,(translation_noise_fraction d)^2)+translation glitch, "
+           "dy=s_t dy+N(0,(slip_per_m d+slip_per_rad |dphi|)^2), "
+           "dphi=s_r dphi+b d+N(0,(rotation_noise_fraction |dphi|)^2+heading_noise_rad2_per_m d+"
+           "heading_noise_per_step_rad^2)+heading glitch; glitches Poisson per metre"}};
+}
+
 json config_json(const MissionConfig& c) {
-  return {
+  json j = {
       {"seed", c.seed},
       {"num_robots", c.num_robots},
       {"duration_s", fixed(c.duration_s)},
@@ -128,6 +153,9 @@ json config_json(const MissionConfig& c) {
         {"min_speed_mps", fixed(c.people.min_speed_mps)},
         {"max_speed_mps", fixed(c.people.max_speed_mps)}}},
   };
+  j["odometry_model"] = odometry_model_name(c.odometry_model);
+  if (c.odometry_model == OdometryModel::kReal) j["real_odometry"] = real_odometry_json(c.real_odometry);
+  return j;
 }
 
 }  // namespace
@@ -223,6 +251,11 @@ void write_mission(const Mission& mission, const std::filesystem::path& dir) {
                       {"start_pose", run.true_poses.empty() ? json::array() : pose(run.true_poses.front())},
                       {"distance_m", fixed(run.distance_m)},
                       {"odometry_distance_m", fixed(run.odometry_distance_m)}});
+    if (c.odometry_model == OdometryModel::kReal) {
+      robots.back()["odometry_errors"] = {{"translation_scale", fixed(run.odometry_errors.translation_scale)},
+                                          {"rotation_scale", fixed(run.odometry_errors.rotation_scale)},
+                                          {"heading_bias_rad_per_m", fixed(run.odometry_errors.heading_bias_rad_per_m)}};
+    }
   }
 
   json walls = json::array();

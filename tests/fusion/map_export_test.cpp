@@ -91,8 +91,14 @@ TEST(MapExportTest, SvgHasTheLayers) {
   std::filesystem::remove(file);
   const std::string svg = text.str();
   EXPECT_EQ(svg.rfind("<svg", 0), 0u);
-  for (const char* layer : {"segments", "bands", "graph", "submaps", "robots", "trajectories"}) {
+  for (const char* layer : {"segments", "bands", "submaps", "robots", "trajectories", "legend"}) {
     EXPECT_NE(svg.find(std::string("id=\"") + layer + "\""), std::string::npos) << layer;
+  }
+  // The environment graph is an optional layer, off by default.
+  EXPECT_EQ(svg.find("id=\"graph\""), std::string::npos);
+  EXPECT_EQ(svg.find("graph edge"), std::string::npos);
+  for (const char* row : {"wall segment", "2-sigma lateral band", "robot 0", "submap frame", "robot frame"}) {
+    EXPECT_NE(svg.find(row), std::string::npos) << row;
   }
   std::size_t lines = 0;
   for (std::size_t at = svg.find("class=\"segment\""); at != std::string::npos;
@@ -100,6 +106,13 @@ TEST(MapExportTest, SvgHasTheLayers) {
     ++lines;
   }
   EXPECT_EQ(lines, 8u);
+
+  MapSvgOptions with_graph;
+  with_graph.graph = true;
+  const std::string drawn = map_to_svg(map, {}, with_graph).str();
+  EXPECT_NE(drawn.find("id=\"graph\""), std::string::npos);
+  EXPECT_NE(drawn.find("graph edge: consecutive"), std::string::npos);
+  EXPECT_NE(drawn.find("graph edge: paired"), std::string::npos);
   EXPECT_THROW(write_map_svg(map, "/nonexistent-dir/map.svg"), std::runtime_error);
   EXPECT_THROW(write_map_json(map, "/nonexistent-dir/map.json"), std::runtime_error);
 }

@@ -145,6 +145,42 @@ TEST(MonitorNode, LiveJsonLinesParseAndCarryTheStatus) {
   EXPECT_EQ(j["messages"], 5);
 }
 
+// Fig. 8's x axis is mission time: a status window is placed at the log time of
+// the robot's last acknowledged scan, not at the (wall-clock) time of the status.
+TEST(MonitorState, TimingIsPlacedInMissionTime) {
+  lmf::monitor::MonitorState state;
+  const std::int64_t log_t0 = 1'060'000'000'000'000;  // the log's clock (2003)
+  const std::int64_t wall_t0 = 1'764'000'000'000'000;  // the agent's clock now
+  for (int k = 0; k < 5; ++k) {
+    lmf::scan_ack_t ack{};
+    ack.robot_id = 0;
+    ack.seq = k;
+    ack.utime = log_t0 + k * 10'000'000;  // scans 10 s apart in the log ...
+    state.on_scan_ack(ack, wall_t0 + k * 100'000);
+    // ... replayed 0.1 s apart: each status after an ack, with sub-millisecond scans
+    state.on_agent_status(agent_status(0, wall_t0 + k * 100'000 + 50'000, 0.25f), wall_t0 + k * 100'000 + 50'000);
+  }
+  EXPECT_TRUE(state.timing_in_mission_time());
+  const auto series = state.timing_series();
+  ASSERT_EQ(series.at(0).size(), 5u);
+  for (int k = 0; k < 5; ++k) EXPECT_NEAR(series.at(0)[static_cast<std::size_t>(k)].time_s, 10.0 * k, 1e-9);
+
+  const auto file = std::filesystem::path(::testing::TempDir()) / "lmf_monitor_timing.svg";
+  state.write_timing_svg(file);
+  const std::string svg = read_file(file);
+  std::filesystem::remove(file);
+  EXPECT_NE(svg.find("mission time (s"), std::string::npos);
+  EXPECT_NE(svg.find("log scale"), std::string::npos);
+  EXPECT_NE(svg.find(">0.01<"), std::string::npos);  // the lowest decade is labelled
+  EXPECT_NE(svg.find(">0.1<"), std::string::npos);
+  EXPECT_NE(svg.find("200 ms"), std::string::npos);
+  EXPECT_NE(svg.find("id=\"legend\""), std::string::npos);
+
+  // A robot that acknowledged no scan: its status times, and the axis says so.
+  state.on_agent_status(agent_status(1, wall_t0, 0.5f), wall_t0);
+  EXPECT_FALSE(state.timing_in_mission_time());
+}
+
 TEST(MonitorNode, TableShowsRobotsAndServer) {
   const rt::Channels channels;
   std::ostringstream out;
