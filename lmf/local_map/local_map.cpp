@@ -22,18 +22,6 @@ namespace {
 using spmap::EntityId;
 using spmap::EntityKind;
 
-// The laser's own information in a match made with the prior (ū, Q): the
-// match's information H = Λ + J_rᵀ Q⁻¹ J_r less the prior's (scan_matcher.hpp),
-// symmetrised and clipped to positive semidefinite.
-Eigen::Matrix3d laser_information(const ScanMatch& match, const Pose2& u_bar, const Eigen::Matrix3d& Q) {
-  const Eigen::Matrix3d J_r = prior_residual_jacobian(u_bar, match.x_AB);
-  const Eigen::Matrix3d H = match.covariance.inverse();
-  Eigen::Matrix3d Lambda = H - J_r.transpose() * Q.inverse() * J_r;
-  Lambda = 0.5 * (Lambda + Lambda.transpose());
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(Lambda);
-  return es.eigenvectors() * es.eigenvalues().cwiseMax(0.0).asDiagonal() * es.eigenvectors().transpose();
-}
-
 bool finite(const Pose2& x) { return std::isfinite(x.x) && std::isfinite(x.y) && std::isfinite(x.phi); }
 
 // An observation the filter can use: finite, positive length, covariance
@@ -177,29 +165,34 @@ ScanReport LocalMap::process_scan(const LaserScan& scan) {
   const ScanMatcherConfig& matching = config_.scan_matching;
   ScanReport report;
   std::optional<Motion> motion;
-  if (matching.enabled && reference_scan_ && odometry_reference_ && finite(scan.odometry)) {
-    // Step 1 refined: the odometry increment, corrected by the learned model, as
-    // the prior of a scan match; the match teaches the model.
-    const Pose2 u = between(*odometry_reference_, scan.odometry);
+  const bool have_increment = odometry_reference_ && finite(scan.odometry);
+  const Pose2 u = have_increment ? between(*odometry_reference_, scan.odometry) : Pose2();
+  if (matching.enabled && !scan_history_.empty() && have_increment) {
+    // Step 1 refined: a scan match against the recent scans, the odometry
+    // increment corrected by the learned model as the centre of its search
+    // window and as its prior; the match teaches the model.
     const OdometryErrorModel& model = odometry_model();
     const Pose2 u_bar = model.corrected(u);
     const Eigen::Matrix3d Q = model.covariance(u);
     // (Q is singular only for a standing robot with zero noise floors: no prior, no match.)
     const bool prior_ok = Eigen::LLT<Eigen::Matrix3d>(Q).info() == Eigen::Success;
     const std::optional<ScanMatch> match =
-        prior_ok ? match_scans(*reference_scan_, scan_points(scan, matching), u_bar, Q, matching) : std::nullopt;
+        prior_ok ? match_scans(scan_history_.reference(), scan_points(scan, matching), u_bar, Q, matching)
+                 : std::nullopt;
     report.scan_match_tried = true;
     if (match) {
       report.scan_matched = true;
       report.scan_match_points = match->correspondences;
       motion = Motion{match->x_AB, match->covariance};
       if (config_.odometry_learning.enabled) {
-        report.odometry_learning_weight = odometry_learner_.observe(u, match->x_AB, laser_information(*match, u_bar, Q));
+        report.odometry_learning_weight = odometry_learner_.observe(u, match->x_AB, match->laser_information);
       }
     }
   }
   report = update_with(scan.utime, scan.odometry, extract_segments(scan, config_.extraction), motion, report);  // step 2
-  if (matching.enabled) reference_scan_ = ReferenceScan::from(scan, matching);
+  // The history goes on from the matched increment; after the odometry's alone
+  // it restarts with this scan.
+  if (matching.enabled) scan_history_.add(scan, motion ? motion->u : u, motion.has_value());
   if (config_.see_through.enabled) {
     report.segments_seen_through = remove_seen_through(scan);
     report.map_segments = static_cast<int>(num_segments());
@@ -604,7 +597,7 @@ void LocalMap::resume(int64_t seq, int64_t origin_utime, const Pose2& origin_odo
   // ... with the odometry reference of that scan: update() predicts from it
   // (that scan's points are gone: no scan match for the first scan).
   odometry_reference_ = origin_odometry;
-  reference_scan_.reset();
+  scan_history_.clear();
 }
 
 }  // namespace lmf

@@ -42,6 +42,7 @@
 #include "lmf/local_map/odometry_model.hpp"
 #include "lmf/scan/laser_scan.hpp"
 #include "lmf/scan/observed_segment.hpp"
+#include "lmf/scan/scan_history.hpp"
 #include "lmf/scan/scan_matcher.hpp"
 #include "lmf/spmap/covariance_check.hpp"
 #include "lmf/spmap/ekf.hpp"
@@ -57,7 +58,7 @@ struct ScanReport {
   int map_segments_before = 0;
 
   // Step 1 (LocalMapConfig::scan_matching, process_scan only): whether the scan
-  // was matched against the previous one and the prediction used the match.
+  // was matched against the recent ones and the prediction used the match.
   bool scan_match_tried = false;
   bool scan_matched = false;
   int scan_match_points = 0;  // points matched (when scan_matched)
@@ -217,7 +218,9 @@ class LocalMap {
   spmap::EntityId robot_ = 0;
   OdometryModelLearner odometry_learner_;
   std::optional<Pose2> odometry_reference_;
-  std::optional<ReferenceScan> reference_scan_;  // the previous scan (scan_matching.enabled)
+  // The last scans with their poses relative to the newest (scan_matching.enabled):
+  // the reference of step 1's match. Relative to the robot, so reset() keeps it.
+  ScanHistory scan_history_{config_.scan_matching};
   std::optional<int64_t> first_utime_;
   int64_t last_utime_ = 0;
   double span_m_ = 0.0;

@@ -4,12 +4,14 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <unordered_set>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
 #include "lmf/common/config_check.hpp"
+#include "lmf/scan/correlative_search.hpp"
 #include "lmf/spmap/ekf.hpp"
 
 namespace lmf {
@@ -36,39 +38,22 @@ Eigen::RowVector3d point_to_line_row(const Eigen::Matrix2d& R, const Eigen::Vect
   return {nR(0), nR(1), nR.dot(Eigen::Vector2d(-b.y(), b.x()))};
 }
 
-// The nearest reference point with a normal to q (in A's frame) among the
-// beams around q's bearing, within `gate` (m); -1 when none.
-int correspondence(const ReferenceScan& A, const Eigen::Vector2d& q, double gate) {
-  const auto beams = static_cast<long>(A.point_of_beam.size());
-  if (beams == 0 || A.angle_increment_rad == 0.0) return -1;
-  const double range = q.norm();
-  const double bearing = std::atan2(q.y(), q.x());
-  const double index = (bearing - A.angle_min_rad) / A.angle_increment_rad;
-  if (!(std::abs(index) < 4.0 * static_cast<double>(beams))) return -1;  // far outside the scan (or NaN)
-  const long centre = std::lround(index);
-  const double arc = std::max(range * std::abs(A.angle_increment_rad), 1e-3);
-  const long half_width = std::clamp(static_cast<long>(std::ceil(gate / arc)), 1L, 20L);
-  int best = -1;
-  double best_d2 = gate * gate;
-  auto visit = [&](long k) {
-    const int j = A.point_of_beam[static_cast<std::size_t>(k)];
-    if (j < 0) return;
-    const double d2 = (A.points[static_cast<std::size_t>(j)] - q).squaredNorm();
-    if (d2 < best_d2) {
-      best_d2 = d2;
-      best = j;
-    }
-  };
-  if (centre >= 0 && centre < beams) visit(centre);
-  // Outwards from the bearing: a point o beams away (o - 0.5 beams in angle) is at least
-  // range · sin(o · increment) from q, so stop once that exceeds the best.
-  for (long o = 1; o <= half_width; ++o) {
-    const double bound = range * std::sin(std::min(1.5, (static_cast<double>(o) - 0.5) * std::abs(A.angle_increment_rad)));
-    if (bound * bound >= best_d2) break;
-    if (centre - o >= 0 && centre - o < beams) visit(centre - o);
-    if (centre + o >= 0 && centre + o < beams) visit(centre + o);
+// Indices of the points kept when only the first one in each square cell of
+// `cell_m` is kept.
+std::vector<std::size_t> thinned(const std::vector<Eigen::Vector2d>& points, double cell_m) {
+  std::unordered_set<std::uint64_t> occupied;
+  occupied.reserve(points.size());
+  std::vector<std::size_t> kept;
+  kept.reserve(points.size());
+  constexpr double kFar = 1e9;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!points[i].allFinite()) continue;
+    const auto ix = static_cast<std::int64_t>(std::floor(std::clamp(points[i].x() / cell_m, -kFar, kFar)));
+    const auto iy = static_cast<std::int64_t>(std::floor(std::clamp(points[i].y() / cell_m, -kFar, kFar)));
+    const std::uint64_t key = (static_cast<std::uint64_t>(ix) << 32U) ^ (static_cast<std::uint64_t>(iy) & 0xffffffffULL);
+    if (occupied.insert(key).second) kept.push_back(i);
   }
-  return best;
+  return kept;
 }
 
 }  // namespace
@@ -84,6 +69,24 @@ void ScanMatcherConfig::validate() const {
           "finite and > 0");
   require(max_normal_flatness > 0.0 && max_normal_flatness <= 1.0, "max_normal_flatness", max_normal_flatness,
           "in (0, 1]");
+  require(std::isfinite(search_window_m) && search_window_m >= 0.0 && search_window_m <= 5.0, "search_window_m",
+          search_window_m, "finite and in [0, 5]");
+  require(std::isfinite(search_window_rad) && search_window_rad >= 0.0 && search_window_rad <= 1.0,
+          "search_window_rad", search_window_rad, "in [0, 1]");
+  require(std::isfinite(search_resolution_m) && search_resolution_m >= 0.01, "search_resolution_m",
+          search_resolution_m, "finite and >= 0.01");
+  require(search_window_m / search_resolution_m <= 60.0, "search_window_m", search_window_m,
+          "at most 60 search_resolution_m");
+  require(min_overlap >= 0.0 && min_overlap < 1.0, "min_overlap", min_overlap, "in [0, 1)");
+  require(ambiguity_ratio > 0.0 && ambiguity_ratio <= 1.0, "ambiguity_ratio", ambiguity_ratio, "in (0, 1]");
+  require(history_scans >= 1, "history_scans", history_scans, ">= 1");
+  require(std::isfinite(keyframe_distance_m) && keyframe_distance_m >= 0.0, "keyframe_distance_m",
+          keyframe_distance_m, "finite and >= 0");
+  require(std::isfinite(keyframe_angle_rad) && keyframe_angle_rad >= 0.0, "keyframe_angle_rad", keyframe_angle_rad,
+          "finite and >= 0");
+  require(std::isfinite(reference_voxel_m) && reference_voxel_m > 0.0, "reference_voxel_m", reference_voxel_m,
+          "finite and > 0");
+  require(prior_alpha > 0.0 && prior_alpha < 1.0, "prior_alpha", prior_alpha, "in (0, 1)");
   require(std::isfinite(last_gate_m) && last_gate_m > 0.0, "last_gate_m", last_gate_m, "finite and > 0");
   require(std::isfinite(first_gate_m) && first_gate_m >= last_gate_m, "first_gate_m", first_gate_m,
           "finite and >= last_gate_m");
@@ -98,14 +101,10 @@ void ScanMatcherConfig::validate() const {
           "finite and >= 0");
   require(std::isfinite(model_noise_per_rad) && model_noise_per_rad >= 0.0, "model_noise_per_rad",
           model_noise_per_rad, "finite and >= 0");
-  require(prior_alpha > 0.0 && prior_alpha < 1.0, "prior_alpha", prior_alpha, "in (0, 1)");
 }
 
-ReferenceScan ReferenceScan::from(const LaserScan& scan, const ScanMatcherConfig& config) {
+OrientedPoints oriented_points(const LaserScan& scan, const ScanMatcherConfig& config) {
   config.validate();
-  ReferenceScan A;
-  A.angle_min_rad = scan.angle_min_rad;
-  A.angle_increment_rad = scan.angle_increment_rad;
   const std::size_t n = scan.ranges_m.size();
   std::vector<Eigen::Vector2d> beam_points(n);
   std::vector<bool> valid(n, false);
@@ -113,7 +112,7 @@ ReferenceScan ReferenceScan::from(const LaserScan& scan, const ScanMatcherConfig
     valid[i] = usable_range(scan, i, config);
     if (valid[i]) beam_points[i] = scan.beam_point(i);
   }
-  A.point_of_beam.assign(n, -1);
+  OrientedPoints out;
   constexpr std::size_t kMaxNeighbourBeams = 10;
   for (std::size_t i = 0; i < n; ++i) {
     if (!valid[i]) continue;
@@ -138,13 +137,81 @@ ReferenceScan ReferenceScan::from(const LaserScan& scan, const ScanMatcherConfig
     if (!(es.eigenvalues()(0) <= config.max_normal_flatness * es.eigenvalues()(1))) continue;
     Eigen::Vector2d normal = es.eigenvectors().col(0);
     if (normal.dot(beam_points[i]) > 0.0) normal = -normal;  // towards the sensor
-    A.point_of_beam[i] = static_cast<int>(A.points.size());
-    A.points.push_back(beam_points[i]);
-    A.normals.push_back(normal);
+    out.points.push_back(beam_points[i]);
+    out.normals.push_back(normal);
+  }
+  return out;
+}
+
+ReferenceScan ReferenceScan::from(const LaserScan& scan, const ScanMatcherConfig& config) {
+  return from_points(oriented_points(scan, config), config);
+}
+
+ReferenceScan ReferenceScan::from_points(const OrientedPoints& given, const ScanMatcherConfig& config) {
+  config.validate();
+  if (given.points.size() != given.normals.size()) {
+    throw std::invalid_argument("ReferenceScan::from_points: as many normals as points needed");
+  }
+  ReferenceScan A;
+  const std::vector<std::size_t> kept = thinned(given.points, config.reference_voxel_m);
+  A.points_.reserve(kept.size());
+  A.normals_.reserve(kept.size());
+  for (const std::size_t i : kept) {
+    A.points_.push_back(given.points[i]);
+    A.normals_.push_back(given.normals[i]);
+    A.bounds_.extend(given.points[i]);
+  }
+  if (A.points_.empty()) return A;
+  // Counting sort of the points into cells of last_gate_m.
+  A.cell_m_ = config.last_gate_m;
+  const Eigen::Vector2d size = A.bounds_.sizes() / A.cell_m_;
+  A.width_ = static_cast<int>(std::floor(size.x())) + 1;
+  A.height_ = static_cast<int>(std::floor(size.y())) + 1;
+  const auto cells = static_cast<std::size_t>(A.width_) * static_cast<std::size_t>(A.height_);
+  std::vector<int> cell_of(A.points_.size());
+  A.cell_start_.assign(cells + 1, 0);
+  for (std::size_t i = 0; i < A.points_.size(); ++i) {
+    const Eigen::Vector2d c = (A.points_[i] - A.bounds_.min()) / A.cell_m_;
+    const int ix = std::min(A.width_ - 1, static_cast<int>(c.x()));
+    const int iy = std::min(A.height_ - 1, static_cast<int>(c.y()));
+    cell_of[i] = iy * A.width_ + ix;
+    ++A.cell_start_[static_cast<std::size_t>(cell_of[i]) + 1];
+  }
+  for (std::size_t c = 0; c < cells; ++c) A.cell_start_[c + 1] += A.cell_start_[c];
+  A.cell_points_.resize(A.points_.size());
+  std::vector<int> fill(A.cell_start_.begin(), A.cell_start_.end() - 1);
+  for (std::size_t i = 0; i < A.points_.size(); ++i) {
+    A.cell_points_[static_cast<std::size_t>(fill[static_cast<std::size_t>(cell_of[i])]++)] = static_cast<int>(i);
   }
   return A;
 }
 
+int ReferenceScan::nearest(const Eigen::Vector2d& q, double gate) const {
+  if (points_.empty() || !q.allFinite()) return -1;
+  const Eigen::Vector2d lo = (q - bounds_.min()).array() - gate;
+  const Eigen::Vector2d hi = (q - bounds_.min()).array() + gate;
+  if (hi.x() < 0.0 || hi.y() < 0.0 || lo.x() > width_ * cell_m_ || lo.y() > height_ * cell_m_) return -1;
+  const int x0 = std::max(0, static_cast<int>(std::floor(lo.x() / cell_m_)));
+  const int y0 = std::max(0, static_cast<int>(std::floor(lo.y() / cell_m_)));
+  const int x1 = std::min(width_ - 1, static_cast<int>(std::floor(hi.x() / cell_m_)));
+  const int y1 = std::min(height_ - 1, static_cast<int>(std::floor(hi.y() / cell_m_)));
+  int best = -1;
+  double best_d2 = gate * gate;
+  for (int iy = y0; iy <= y1; ++iy) {
+    for (int ix = x0; ix <= x1; ++ix) {
+      const auto c = static_cast<std::size_t>(iy * width_ + ix);
+      for (int k = cell_start_[c]; k < cell_start_[c + 1]; ++k) {
+        const int j = cell_points_[static_cast<std::size_t>(k)];
+        const double d2 = (points_[static_cast<std::size_t>(j)] - q).squaredNorm();
+        if (d2 < best_d2) {
+          best_d2 = d2;
+          best = j;
+        }
+      }
+    }
+  }
+  return best;
+}
 std::vector<Eigen::Vector2d> scan_points(const LaserScan& scan, const ScanMatcherConfig& config) {
   std::vector<Eigen::Vector2d> points;
   points.reserve(scan.ranges_m.size());
@@ -163,9 +230,16 @@ Eigen::Matrix3d prior_residual_jacobian(const Pose2& u_hat, const Pose2& x) {
   return J2compose(between(u_hat, x), Pose2());
 }
 
-std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& B,
-                                     const Pose2& u_hat, const Eigen::Matrix3d& Q, const ScanMatcherConfig& config) {
-  config.validate();
+namespace {
+
+struct Refinement {
+  ScanMatch match;
+  // Σ_i J_iᵀ J_i / N over the matched points: the mean squared displacement of
+  // the points across their surfaces for a perturbation δ is δᵀ M δ.
+  Eigen::Matrix3d mean_point_information = Eigen::Matrix3d::Zero();
+};
+
+Eigen::Matrix3d checked_inverse_of_prior(const Pose2& u_hat, const Eigen::Matrix3d& Q) {
   if (!std::isfinite(u_hat.x) || !std::isfinite(u_hat.y) || !std::isfinite(u_hat.phi)) {
     throw std::invalid_argument("match_scans: non-finite odometry increment");
   }
@@ -173,7 +247,12 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
   if (!Q.allFinite() || !Q.isApprox(Q.transpose(), 1e-9) || Q_llt.info() != Eigen::Success) {
     throw std::invalid_argument("match_scans: the odometry covariance Q must be symmetric positive definite");
   }
-  const Eigen::Matrix3d Q_inv = Q_llt.solve(Eigen::Matrix3d::Identity());
+  return Q_llt.solve(Eigen::Matrix3d::Identity());
+}
+
+// Stage 2: Gauss–Newton of the maximum a posteriori problem from x0.
+std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& B, const Pose2& x0,
+                                 const Pose2& u_hat, const Eigen::Matrix3d& Q_inv, const ScanMatcherConfig& config) {
   const double sigma2 = config.point_sigma_m * config.point_sigma_m;
   const double huber = config.huber_k * config.point_sigma_m;
   const double turn_noise = config.model_noise_per_rad * std::abs(u_hat.phi);
@@ -182,14 +261,16 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
                       config.model_noise_rad * config.model_noise_rad + turn_noise * turn_noise)
           .asDiagonal();
 
-  ScanMatch out;
-  Pose2 x = u_hat;
+  const double prior_k2 = spmap::chi2_threshold(3, config.prior_alpha);
+  Refinement out;
+  Pose2 x = x0;
   Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
   double gate = config.first_gate_m;
   constexpr int kIterationsPerGate = 5;
   int iterations_at_gate = 0;
   for (int it = 0; it < config.max_iterations; ++it) {
     Eigen::Matrix3d A_laser = Eigen::Matrix3d::Zero();
+    Eigen::Matrix3d A_unweighted = Eigen::Matrix3d::Zero();
     Eigen::Vector3d g_laser = Eigen::Vector3d::Zero();
     int matched = 0;
     double sum_e2 = 0.0;
@@ -197,21 +278,24 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
     const Eigen::Vector2d t(x.x, x.y);
     for (const Eigen::Vector2d& b : B) {
       const Eigen::Vector2d q = t + R * b;  // x ⊙ b: b in A's frame
-      const int j = correspondence(A, q, gate);
+      const int j = A.nearest(q, gate);
       if (j < 0) continue;
-      const Eigen::Vector2d& n = A.normals[static_cast<std::size_t>(j)];
-      const double e = n.dot(q - A.points[static_cast<std::size_t>(j)]);
+      const Eigen::Vector2d& n = A.normals()[static_cast<std::size_t>(j)];
+      const double e = n.dot(q - A.points()[static_cast<std::size_t>(j)]);
       const Eigen::RowVector3d J = point_to_line_row(R, b, n);
       const double w = std::abs(e) <= huber ? 1.0 : huber / std::abs(e);
-      A_laser.noalias() += w * J.transpose() * J;
+      const Eigen::Matrix3d JtJ = J.transpose() * J;
+      A_laser.noalias() += w * JtJ;
+      A_unweighted += JtJ;
       g_laser.noalias() += w * e * J.transpose();
       sum_e2 += e * e;
       ++matched;
     }
-    out.correspondences = matched;
-    out.iterations = it + 1;
+    out.match.correspondences = matched;
+    out.match.iterations = it + 1;
     if (matched < config.min_correspondences) return std::nullopt;
-    out.rms_m = std::sqrt(sum_e2 / matched);
+    out.match.rms_m = std::sqrt(sum_e2 / matched);
+    out.mean_point_information = A_unweighted / matched;
     // Λ at most max_independent_points effective points, then widened by C_m:
     // Λ' = (I + Λ C_m)⁻¹ Λ, and the gradient of the widened term (I + Λ C_m)⁻¹ g.
     const double laser_weight = std::min(1.0, config.max_independent_points / matched) / sigma2;
@@ -219,11 +303,15 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
     const Eigen::Matrix3d widen = (Eigen::Matrix3d::Identity() + Lambda * C_m).inverse();
     Eigen::Matrix3d Lambda_widened = widen * Lambda;
     Lambda_widened = (0.5 * (Lambda_widened + Lambda_widened.transpose())).eval();
+    out.match.laser_information = Lambda_widened;
     const Pose2 r_pose = between(u_hat, x);
     const Eigen::Vector3d r(r_pose.x, r_pose.y, wrap_angle(r_pose.phi));
     const Eigen::Matrix3d J_r = prior_residual_jacobian(u_hat, x);
-    H = Lambda_widened + J_r.transpose() * Q_inv * J_r;
-    const Eigen::Vector3d gradient = widen * (laser_weight * g_laser) + J_r.transpose() * Q_inv * r;
+    const double d2 = r.dot(Q_inv * r);
+    const double w_prior = d2 <= prior_k2 ? 1.0 : std::sqrt(prior_k2 / d2);
+    out.match.prior_weight = w_prior;
+    H = Lambda_widened + w_prior * J_r.transpose() * Q_inv * J_r;
+    const Eigen::Vector3d gradient = widen * (laser_weight * g_laser) + w_prior * J_r.transpose() * Q_inv * r;
     const Eigen::Vector3d delta = -H.ldlt().solve(gradient);
     if (!delta.allFinite()) return std::nullopt;
     x = compose(x, Pose2(delta(0), delta(1), delta(2)));
@@ -240,15 +328,101 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
     }
   }
   const Pose2 r_pose = between(u_hat, x);
-  const Eigen::Vector3d r(r_pose.x, r_pose.y, wrap_angle(r_pose.phi));
-  out.prior_distance2 = r.dot(Q_inv * r);
-  if (!(out.prior_distance2 <= spmap::chi2_threshold(3, config.prior_alpha))) return std::nullopt;
+  out.match.prior_residual = Eigen::Vector3d(r_pose.x, r_pose.y, wrap_angle(r_pose.phi));
+  out.match.prior_distance2 = out.match.prior_residual.dot(Q_inv * out.match.prior_residual);
   const Eigen::LLT<Eigen::Matrix3d> H_llt(H);
   if (H_llt.info() != Eigen::Success) return std::nullopt;
-  out.x_AB = x;
-  out.covariance = H_llt.solve(Eigen::Matrix3d::Identity());
-  out.covariance = (0.5 * (out.covariance + out.covariance.transpose())).eval();
+  out.match.x_AB = x;
+  out.match.search_pose = x0;
+  out.match.covariance = H_llt.solve(Eigen::Matrix3d::Identity());
+  out.match.covariance = (0.5 * (out.match.covariance + out.match.covariance.transpose())).eval();
   return out;
+}
+
+// The window of the search for the points B around û (all in metres and radians).
+CorrelativeWindow search_window(const std::vector<Eigen::Vector2d>& points, const ScanMatcherConfig& config) {
+  // The angular step moves a point at the 90th-percentile range by one cell
+  // (points farther move more, but are few: the coarse pose only has to land
+  // inside the refinement's basin).
+  std::vector<double> ranges;
+  ranges.reserve(points.size());
+  for (const Eigen::Vector2d& p : points) ranges.push_back(p.norm());
+  const auto at = ranges.begin() + static_cast<std::ptrdiff_t>(0.9 * static_cast<double>(ranges.size() - 1));
+  std::nth_element(ranges.begin(), at, ranges.end());
+  // Capped at 10 m: beyond, the step would shrink below 0.01 rad, which
+  // still moves points at 20 m by only 0.2 m, inside the first gate.
+  const double range = std::clamp(*at, 1.0, 10.0);
+  return {config.search_window_m, config.search_window_rad, config.search_resolution_m / range};
+}
+
+}  // namespace
+
+std::optional<ScanMatch> refine_match(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& B,
+                                      const Pose2& x0, const Pose2& u_hat, const Eigen::Matrix3d& Q,
+                                      const ScanMatcherConfig& config) {
+  config.validate();
+  const Eigen::Matrix3d Q_inv = checked_inverse_of_prior(u_hat, Q);
+  std::optional<Refinement> r = refine(A, B, x0, u_hat, Q_inv, config);
+  if (!r) return std::nullopt;
+  return r->match;
+}
+
+std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& B,
+                                     const Pose2& u_hat, const Eigen::Matrix3d& Q, const ScanMatcherConfig& config) {
+  config.validate();
+  const Eigen::Matrix3d Q_inv = checked_inverse_of_prior(u_hat, Q);
+  if (static_cast<int>(B.size()) < config.min_correspondences || A.size() < 3) return std::nullopt;
+
+  // Stage 1: the correlative search, on B thinned to one point per cell.
+  const double resolution = config.search_resolution_m;
+  std::vector<Eigen::Vector2d> search_points;
+  for (const std::size_t i : thinned(B, resolution)) search_points.push_back(B[i]);
+  if (search_points.empty()) return std::nullopt;  // none finite
+  const CorrelativeWindow window = search_window(search_points, config);
+  // The field covers where B's points can land within the window (and where A has points).
+  Eigen::AlignedBox2d reach;
+  double farthest = 0.0;
+  const Eigen::Matrix2d R_hat = rotation(u_hat.phi);
+  for (const Eigen::Vector2d& b : search_points) {
+    reach.extend(Eigen::Vector2d(u_hat.x, u_hat.y) + R_hat * b);
+    farthest = std::max(farthest, b.norm());
+  }
+  const double margin = window.linear_m + farthest * std::sin(window.angular_rad) + 2.0 * resolution;
+  reach.min().array() -= margin;
+  reach.max().array() += margin;
+  Eigen::AlignedBox2d reference_bounds = A.bounds();
+  reference_bounds.min().array() -= 2.0 * resolution;
+  reference_bounds.max().array() += 2.0 * resolution;
+  const Eigen::AlignedBox2d region = reach.intersection(reference_bounds);
+  if (region.isEmpty()) return std::nullopt;
+  // Enough levels that one top-level block spans the window's translations.
+  const int half_cells = static_cast<int>(std::floor(window.linear_m / resolution + 1e-9));
+  int levels = 1;
+  while ((1 << (levels - 1)) < 2 * half_cells + 1) ++levels;
+  const LikelihoodField field(A.points(), region, resolution, resolution, levels);
+  const std::optional<CorrelativeResult> search =
+      correlative_search(field, search_points, u_hat, window, config.min_overlap, config.ambiguity_ratio);
+  if (!search) return std::nullopt;
+  const CorrelativeMatch* best = &search->best;
+
+  // Stage 2: the refinement from the search's best pose.
+  std::optional<Refinement> refined = refine(A, B, best->x, u_hat, Q_inv, config);
+  if (!refined) return std::nullopt;
+
+  // Ambiguity: another pose of the window nearly as good, whose points lie
+  // more than two cells (RMS, across their surfaces) from the best's. Poses
+  // that differ only in directions the scene does not constrain (along a
+  // corridor) are the same peak: the prior decides those.
+  const Eigen::Matrix3d M = refined->mean_point_information;
+  const double separation2 = 4.0 * resolution * resolution;
+  for (const CorrelativeMatch& other : search->contenders) {
+    const Pose2 d = between(best->x, other.x);
+    const Eigen::Vector3d delta(d.x, d.y, wrap_angle(d.phi));
+    if (delta.dot(M * delta) > separation2) return std::nullopt;
+  }
+  refined->match.search_score = best->score;
+  refined->match.search_pose = best->x;
+  return refined->match;
 }
 
 }  // namespace lmf

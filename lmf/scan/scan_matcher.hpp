@@ -1,27 +1,40 @@
-// Scan-to-scan matching that refines one odometry increment (an addition to the
-// paper's local map, DESIGN §4.1 step 1): point-to-line ICP of the current scan
-// against the previous one, solved as a maximum a posteriori estimate with the
-// odometry increment as prior, so directions the scans do not constrain (along
-// a corridor) keep the odometry's estimate and uncertainty.
+// Scan matching that estimates one odometry increment (an addition to the
+// paper's local map, DESIGN §4.1 step 1 and §10): the current scan B against a
+// reference A, the union of the last few scans expressed in the newest one's
+// frame (scan_history.hpp), in two stages:
+//  1. a correlative search (correlative_search.hpp) over a window of poses
+//     around the odometry increment, as wide as odometry errors physically get
+//     (glitches of several degrees, slip and scale errors of tens of cm), so a
+//     wrong odometry increment no longer starts the refinement outside its basin;
+//  2. point-to-line Gauss–Newton from the best pose of the window, a maximum a
+//     posteriori estimate with the odometry increment as prior, so directions
+//     the laser does not constrain (along a corridor) keep the odometry's
+//     estimate and uncertainty.
+// The match is refused (std::nullopt: the caller keeps the odometry) when the
+// scan overlaps the reference too little, or when the window holds a second
+// peak nearly as good as the best and distinct from it in the directions the
+// laser constrains (an ambiguous scene). It is NOT refused for disagreeing
+// with the odometry prior: a wrong prior is what the window is for.
 //
 // Notation (all in the robot = sensor frame):
-//   A  the reference (previous) scan, points a_j with unit normals n_j;
+//   A  the reference, points a_j with unit normals n_j;
 //   B  the current scan, points b_i;
 //   u  the increment x_AB (pose of B seen from A), û its odometry estimate with
 //      perturbation p_u (u = û ⊕ p_u, p_u ~ N(0, Q)), as LocalMap::predict uses.
 // The laser term is Λ = s Σ_i w_i J_iᵀ J_i / σ² (J_i the Jacobian of the
 // point-to-line distance e_i = n_jᵀ (x ⊙ b_i − a_j) with respect to δ in
-// x ⊕ δ, w_i Huber weights, correspondences j(i) re-found by projection onto
-// A's beams each iteration), scaled by s to at most `max_independent_points`
-// effective points: neighbouring points' errors are correlated and the segment
-// observations use the same points again, so the raw count would make it
-// overconfident. Λ⁻¹ is then widened by a model noise C_m (walls are not
-// perfect lines, the scans not instantaneous), Λ' = (Λ⁻¹ + C_m)⁻¹ = (I + Λ C_m)⁻¹ Λ,
-// which stays defined where Λ is singular (a corridor). Gauss–Newton on
-// x ← x ⊕ δ then solves the maximum a posteriori problem of that laser term and
-// the prior r(x) = between(û, x) ~ N(0, Q); the result's covariance is
-// (Λ' + J_rᵀ Q⁻¹ J_r)⁻¹ at the optimum. The correspondence gate starts at
-// first_gate_m and halves each time the estimate settles, down to last_gate_m.
+// x ⊕ δ, w_i Huber weights, correspondences j(i) the nearest reference point
+// within a gate, re-found each iteration), scaled by s to at most
+// `max_independent_points` effective points: neighbouring points' errors are
+// correlated and the segment observations use the same points again, so the
+// raw count would make it overconfident. Λ⁻¹ is then widened by a model noise
+// C_m (walls are not perfect lines, the scans not instantaneous),
+// Λ' = (Λ⁻¹ + C_m)⁻¹ = (I + Λ C_m)⁻¹ Λ, which stays defined where Λ is singular
+// (a corridor). Gauss–Newton on x ← x ⊕ δ then solves the maximum a posteriori
+// problem of that laser term and the prior r(x) = between(û, x) ~ N(0, Q); the
+// result's covariance is (Λ' + J_rᵀ Q⁻¹ J_r)⁻¹ at the optimum. The
+// correspondence gate starts at first_gate_m and halves each time the estimate
+// settles, down to last_gate_m.
 //
 // Pure functions, thread-safe.
 #pragma once
@@ -31,6 +44,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include "lmf/geometry/pose2.hpp"
 #include "lmf/scan/laser_scan.hpp"
@@ -49,9 +63,41 @@ struct ScanMatcherConfig {
   // below max_normal_flatness); points without one are not used.
   double normal_radius_m = 0.5;
   double max_normal_flatness = 0.1;
-  // Correspondence gate (m): from first (coarse, odometry-sized errors), halved
-  // each time the estimate settles, down to last.
-  double first_gate_m = 1.0;
+
+  // The correlative search's window around the odometry increment: ± this
+  // translation (m, each axis) and rotation (rad). Physical sizes, independent
+  // of the odometry covariance (which may be wrong): wheel odometry's increment
+  // errors per step are a few % of the step (scale), centimetres of slip, and
+  // heading errors of a few degrees with glitches up to ~10° (a wheel slipping
+  // on a threshold); the translation error of a half-metre step stays under a
+  // decimetre. The window holds these with a margin of ~3.
+  double search_window_m = 0.3;
+  double search_window_rad = 0.25;
+  // Cell size (m) of the likelihood field, also its kernel's sigma: a pose of the
+  // window is off by at most half a cell, well inside the refinement's gates.
+  // The angular step is the same arc at the scan's 90th-percentile range.
+  double search_resolution_m = 0.1;
+  // The best pose of the window must explain at least this share of the scan's
+  // points (mean likelihood): less, and the scans barely overlap.
+  double min_overlap = 0.25;
+  // Ambiguous when a second pose of the window, distinct from the best (points
+  // moved by more than two cells across their surfaces, RMS), scores at least
+  // this fraction of the best.
+  double ambiguity_ratio = 0.9;
+
+  // Reference history (scan_history.hpp): at most history_scans scans (the
+  // newest always), an older one kept only when it lies at least
+  // keyframe_distance_m or keyframe_angle_rad from the next newer one kept;
+  // the union is thinned to one point per reference_voxel_m square.
+  int history_scans = 4;
+  double keyframe_distance_m = 0.2;
+  double keyframe_angle_rad = 0.1;
+  double reference_voxel_m = 0.05;
+
+  // Correspondence gate (m) of the refinement: from first (the search's
+  // residual error of half a cell and half an angular step, with margin),
+  // halved each time the estimate settles, down to last.
+  double first_gate_m = 0.5;
   double last_gate_m = 0.25;
   int max_iterations = 30;
   // Fewer matched points than this: no estimate (odometry alone).
@@ -69,24 +115,55 @@ struct ScanMatcherConfig {
   double model_noise_m = 0.01;
   double model_noise_rad = 0.003;
   double model_noise_per_rad = 0.0;
-  // The estimate is rejected (odometry alone) when its Mahalanobis distance to
-  // the odometry increment, r(x)ᵀ Q⁻¹ r(x), exceeds chi2inv(1 - prior_alpha, 3).
-  double prior_alpha = 1e-4;
+  // The prior is robust (Huber on its Mahalanobis distance d): beyond
+  // d² = chi2inv(1 - prior_alpha, 3) its information is scaled by
+  // sqrt(chi2inv) / d, so an odometry increment the laser proves wrong pulls
+  // the estimate less, and its covariance widens accordingly. Never a reason
+  // to refuse the match.
+  double prior_alpha = 0.01;
 
   // Throws std::invalid_argument naming the first invalid field and its value.
   void validate() const;
 };
 
-// Scan A prepared for matching: its usable points with their normals, in beam order.
-struct ReferenceScan {
-  double angle_min_rad = 0.0;
-  double angle_increment_rad = 0.0;
-  std::vector<int> point_of_beam;     // beam -> index into points, -1 when unusable
+// Points of a scan with unit normals facing the sensor, in the scan's frame:
+// those usable points whose beam neighbours (normal_radius_m, max_normal_flatness)
+// lie on a line.
+struct OrientedPoints {
   std::vector<Eigen::Vector2d> points;
   std::vector<Eigen::Vector2d> normals;
-  std::vector<double> ranges_m;
+};
+OrientedPoints oriented_points(const LaserScan& scan, const ScanMatcherConfig& config);
 
+// The reference A prepared for matching: points with normals in A's frame,
+// thinned to one per reference_voxel_m square (the first given wins), and
+// indexed by square cells of last_gate_m for nearest-point queries.
+class ReferenceScan {
+ public:
+  ReferenceScan() = default;
+  // One scan.
   static ReferenceScan from(const LaserScan& scan, const ScanMatcherConfig& config);
+  // Any set of oriented points (the union of a history). Throws
+  // std::invalid_argument when the sizes differ.
+  static ReferenceScan from_points(const OrientedPoints& points, const ScanMatcherConfig& config);
+
+  const std::vector<Eigen::Vector2d>& points() const { return points_; }
+  const std::vector<Eigen::Vector2d>& normals() const { return normals_; }
+  std::size_t size() const { return points_.size(); }
+  const Eigen::AlignedBox2d& bounds() const { return bounds_; }
+  // The index of the reference point nearest to q within `gate` (m), -1 when none.
+  int nearest(const Eigen::Vector2d& q, double gate) const;
+
+ private:
+  std::vector<Eigen::Vector2d> points_;
+  std::vector<Eigen::Vector2d> normals_;
+  Eigen::AlignedBox2d bounds_;
+  // Cells of cell_m_ from bounds_.min(): cell c holds cell_points_[cell_start_[c] .. cell_start_[c + 1]).
+  double cell_m_ = 1.0;
+  int width_ = 0;
+  int height_ = 0;
+  std::vector<int> cell_start_;
+  std::vector<int> cell_points_;
 };
 
 // The usable points of scan B (m, robot frame).
@@ -94,20 +171,39 @@ std::vector<Eigen::Vector2d> scan_points(const LaserScan& scan, const ScanMatche
 
 struct ScanMatch {
   Pose2 x_AB;                    // the refined increment
-  Eigen::Matrix3d covariance;    // of its perturbation p (x_true = x_AB ⊕ p)
+  Eigen::Matrix3d covariance;    // of its perturbation p (x_true = x_AB ⊕ p): (Λ' + J_rᵀ Q⁻¹ J_r)⁻¹
+  // The laser's own information about p at the optimum, Λ' (widened by the
+  // model noise; singular where the scene does not constrain a direction).
+  // With the prior residual below, an odometry error model can compare the
+  // odometry with the laser in the directions the laser constrains.
+  Eigen::Matrix3d laser_information;
+  // r = between(û, x_AB) as (x, y, φ): where the match puts the truth relative
+  // to the odometry increment, in û's frame (the perturbation p_u of û).
+  Eigen::Vector3d prior_residual = Eigen::Vector3d::Zero();
+  double prior_distance2 = 0.0;  // rᵀ Q⁻¹ r (reported; not a reason to refuse)
+  double prior_weight = 1.0;     // the robust prior's weight on Q⁻¹ (config.prior_alpha)
   int correspondences = 0;       // matched points at the last iteration
   int iterations = 0;
   double rms_m = 0.0;            // RMS point-to-line distance of the matched points
-  double prior_distance2 = 0.0;  // r(x)ᵀ Q⁻¹ r(x) at the estimate
+  double search_score = 0.0;     // the correlative search's best score (mean likelihood, [0, 1])
+  Pose2 search_pose;             // ... and its pose
 };
 
-// Matches B against A starting from the odometry increment û with covariance Q
-// (of p_u, positive definite). std::nullopt when there are too few
-// correspondences or the estimate fails the prior test: the caller keeps û, Q.
+// Matches B against A with the odometry increment û and covariance Q (of p_u,
+// positive definite) as prior: the correlative search around û, then the
+// refinement. std::nullopt when the overlap is too small, the best pose is
+// ambiguous, or there are too few correspondences: the caller keeps û, Q.
 // Throws std::invalid_argument for an invalid config, non-finite û or a Q that
 // is not symmetric positive definite.
 std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& B,
                                      const Pose2& u_hat, const Eigen::Matrix3d& Q, const ScanMatcherConfig& config);
+
+// The refinement alone (stage 2, from the start pose x0 instead of the search's
+// best): for tests that compare it with the full match. std::nullopt on too few
+// correspondences or a failed solve.
+std::optional<ScanMatch> refine_match(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& B,
+                                      const Pose2& x0, const Pose2& u_hat, const Eigen::Matrix3d& Q,
+                                      const ScanMatcherConfig& config);
 
 // Jacobians of the two residual kinds with respect to δ in x ⊕ δ, at δ = 0
 // (exposed for the finite-difference tests):

@@ -9,6 +9,15 @@ void read_scan_matcher_config(io::JsonReader& reader, ScanMatcherConfig& config)
   reader.read("no_return_margin_m", config.no_return_margin_m, io::non_negative());
   reader.read("normal_radius_m", config.normal_radius_m, io::positive());
   reader.read("max_normal_flatness", config.max_normal_flatness, io::in_closed(0.0, 1.0));
+  reader.read("search_window_m", config.search_window_m, io::non_negative());
+  reader.read("search_window_rad", config.search_window_rad, io::non_negative());
+  reader.read("search_resolution_m", config.search_resolution_m, io::positive());
+  reader.read("min_overlap", config.min_overlap, io::non_negative());
+  reader.read("ambiguity_ratio", config.ambiguity_ratio, io::positive());
+  reader.read("history_scans", config.history_scans, io::at_least(1.0));
+  reader.read("keyframe_distance_m", config.keyframe_distance_m, io::non_negative());
+  reader.read("keyframe_angle_rad", config.keyframe_angle_rad, io::non_negative());
+  reader.read("reference_voxel_m", config.reference_voxel_m, io::positive());
   reader.read("first_gate_m", config.first_gate_m, io::positive());
   reader.read("last_gate_m", config.last_gate_m, io::positive());
   reader.read("max_iterations", config.max_iterations, io::at_least(1.0));

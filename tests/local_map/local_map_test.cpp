@@ -595,6 +595,25 @@ TEST(LocalMapScanMatching, PredictionWithTheMatchBeatsTheOdometry) {
   EXPECT_LT(with, 0.85 * without) << "with matching " << with << ", without " << without;
 }
 
+// The scan history behind step 1 is relative to the robot: a new local map
+// (reset) keeps matching against the scans before it; resume() (the scans
+// are gone) starts it again.
+TEST(LocalMapScanMatching, TheScanHistorySurvivesReset) {
+  testing::SyntheticWorld room;
+  room.walls = {{{-2.0, -4.0}, {12.0, -4.0}}, {{12.0, -4.0}, {12.0, 5.0}}, {{12.0, 5.0}, {-2.0, 5.0}},
+                {{-2.0, 5.0}, {-2.0, -4.0}}, {{5.0, 2.0}, {5.0, 5.0}}};
+  LocalMap lm;
+  for (int k = 0; k < 6; ++k) {
+    LaserScan scan = testing::make_scan(room, Pose2(0.4 * k, 0.0, 0.05 * k), 361);
+    scan.utime = k * kScanPeriodUs;
+    if (k == 3) lm.reset();
+    if (k == 5) lm.resume(lm.seq() + 1, scan.utime - kScanPeriodUs, Pose2(0.4 * 4, 0.0, 0.05 * 4));
+    const ScanReport r = lm.process_scan(scan);
+    EXPECT_EQ(r.scan_match_tried, k > 0 && k != 5) << k;
+    EXPECT_EQ(r.scan_matched, k > 0 && k != 5) << k;
+  }
+}
+
 // Free-space evidence (LocalMapConfig::see_through): a box face seen by the
 // first scans (another robot standing there) and gone from the later ones is
 // removed once the beams pass through where it was; the room's walls stay.

@@ -1,6 +1,8 @@
 // The scan matcher of the local map's step 1: Jacobians against finite
-// differences, a known increment recovered in a room, a corridor's unobservable
-// direction left to the odometry prior, and bad input.
+// differences, a known increment recovered in a room (also from an odometry
+// increment far outside a local refinement's basin), a corridor's unobservable
+// direction left to the odometry prior, ambiguous and degenerate scenes
+// refused, and bad input.
 #include "lmf/scan/scan_matcher.hpp"
 
 #include <cmath>
@@ -74,6 +76,30 @@ testing::SyntheticWorld room() {
   return w;
 }
 
+// A round room (radius 10 m around `centre`, as 720 straight pieces) with three square pillars
+// (0.4 m): the wall says nothing about rotation seen from the centre, the
+// pillars (8.5 m away) say it all, and a rotation error of 8° moves them by
+// more than the refinement's first gate.
+testing::SyntheticWorld round_room(const Eigen::Vector2d& centre) {
+  testing::SyntheticWorld w;
+  constexpr int kPieces = 720;
+  for (int i = 0; i < kPieces; ++i) {
+    const double a0 = 2.0 * std::numbers::pi * i / kPieces;
+    const double a1 = 2.0 * std::numbers::pi * (i + 1) / kPieces;
+    w.walls.push_back({centre + 10.0 * Eigen::Vector2d(std::cos(a0), std::sin(a0)),
+                       centre + 10.0 * Eigen::Vector2d(std::cos(a1), std::sin(a1))});
+  }
+  for (const Eigen::Vector2d& offset : {Eigen::Vector2d(8.5, 1.0), Eigen::Vector2d(6.0, -6.0), Eigen::Vector2d(3.5, 7.8)}) {
+    const Eigen::Vector2d c = centre + offset;
+    const Eigen::Vector2d a = c + Eigen::Vector2d(-0.2, -0.2);
+    const Eigen::Vector2d b = c + Eigen::Vector2d(0.2, -0.2);
+    const Eigen::Vector2d d = c + Eigen::Vector2d(0.2, 0.2);
+    const Eigen::Vector2d e = c + Eigen::Vector2d(-0.2, 0.2);
+    w.walls.insert(w.walls.end(), {{a, b}, {b, d}, {d, e}, {e, a}});
+  }
+  return w;
+}
+
 Eigen::Matrix3d odometry_like_covariance(const Pose2& u) {
   const double d = std::hypot(u.x, u.y);
   const double s_xy = 0.08 * d + 0.001;
@@ -126,24 +152,34 @@ TEST(ScanMatcher, InACorridorTheAlongTrackDirectionStaysWithTheOdometry) {
   const LaserScan A = testing::make_scan(corridor, x_WA, 361, 20.0);
   const LaserScan B = testing::make_scan(corridor, x_WB, 361, 20.0);
   const Pose2 truth = between(x_WA, x_WB);
-  const Pose2 u_hat = compose(truth, Pose2(0.15, 0.08, 0.03));
+  const Pose2 u_hat = compose(truth, Pose2(0.15, 0.08, 0.1));
   const Eigen::Matrix3d Q = odometry_like_covariance(u_hat);
   const std::optional<ScanMatch> m =
       match_scans(ReferenceScan::from(A, config), scan_points(B, config), u_hat, Q, config);
   ASSERT_TRUE(m.has_value());
   ASSERT_TRUE(symmetric_positive_definite(m->covariance));
   // Lateral offset and heading come from the walls (in A's frame: y and phi) ...
-  EXPECT_NEAR(m->x_AB.y, truth.y, 0.01);      // odometry: 8 cm off
-  EXPECT_NEAR(m->x_AB.phi, truth.phi, 0.006);  // odometry: 0.03 rad off
+  EXPECT_NEAR(m->x_AB.y, truth.y, 0.01);      // odometry: 8 cm off (and more by its heading)
+  // odometry: 0.1 rad off with a std of 0.02: the prior, trusted, pulls the angle a little.
+  EXPECT_NEAR(m->x_AB.phi, truth.phi, 0.01);
   // ... the along-track position stays the odometry's, with its uncertainty.
   EXPECT_NEAR(m->x_AB.x, u_hat.x, 0.02);
   const Eigen::Matrix3d C = m->covariance;
   EXPECT_GT(C(0, 0), 0.8 * Q(0, 0));
   EXPECT_LT(C(1, 1), 0.1 * Q(1, 1));
   EXPECT_LT(C(2, 2), 0.2 * Q(2, 2));
+  // The laser's own information says so: nothing along the corridor's axis
+  // (its direction in B's frame, rotated by the small angle), much across it.
+  const Eigen::Vector2d axis(std::cos(m->x_AB.phi), -std::sin(m->x_AB.phi));
+  const Eigen::Vector3d along(axis.x(), axis.y(), 0.0);
+  EXPECT_LT(along.dot(m->laser_information * along), 1e-3 * m->laser_information(1, 1));
+  EXPECT_TRUE(symmetric_positive_definite(m->laser_information + 1e-9 * Eigen::Matrix3d::Identity()));
 }
 
-TEST(ScanMatcher, TooFewPointsOrAFarEstimateFallBackToTheOdometry) {
+// The old matcher refused an estimate 7 sigma from the odometry (a prior
+// test): a wrong odometry increment is what the search window is for, so the
+// match is kept now, and its distance to the prior reported.
+TEST(ScanMatcher, AMatchFarFromTheOdometryPriorIsKeptAndItsDistanceReported) {
   ScanMatcherConfig config;
   config.enabled = true;
   const LaserScan A = testing::make_scan(room(), Pose2(), 361);
@@ -151,17 +187,95 @@ TEST(ScanMatcher, TooFewPointsOrAFarEstimateFallBackToTheOdometry) {
   const Pose2 u(0.5, 0.0, 0.0);
   const Eigen::Matrix3d Q = odometry_like_covariance(u);
   EXPECT_FALSE(match_scans(reference, {}, u, Q, config).has_value());
-  // The true motion is 0.8 m, the odometry says 0.5 m with a 4 cm std: the
-  // scans agree on ~0.8 m, 7 sigma from the odometry, which the prior test
-  // (chi2inv(1 - 1e-4, 3) = 21.1) refuses ...
+  // The true motion is 0.8 m, the odometry says 0.5 m with a 4 cm std.
   const LaserScan B = testing::make_scan(room(), Pose2(0.8, 0.0, 0.0), 361);
-  EXPECT_FALSE(match_scans(reference, scan_points(B, config), u, Q, config).has_value());
-  // ... and a far looser one lets through.
-  config.prior_alpha = 1e-30;
-  const std::optional<ScanMatch> unchecked = match_scans(reference, scan_points(B, config), u, Q, config);
-  ASSERT_TRUE(unchecked.has_value());
-  EXPECT_NEAR(unchecked->x_AB.x, 0.8, 0.05);
-  EXPECT_GT(unchecked->prior_distance2, 21.1);
+  const std::optional<ScanMatch> m = match_scans(reference, scan_points(B, config), u, Q, config);
+  ASSERT_TRUE(m.has_value());
+  EXPECT_NEAR(m->x_AB.x, 0.8, 0.03);
+  EXPECT_GT(m->prior_distance2, 21.1);  // chi2inv(1 - 1e-4, 3): the old refusal
+  // The prior residual is between(û, x_AB), and prior_distance2 its Q⁻¹ norm.
+  const Pose2 r = between(u, m->x_AB);
+  EXPECT_NEAR(m->prior_residual(0), r.x, 1e-12);
+  EXPECT_NEAR(m->prior_residual(1), r.y, 1e-12);
+  EXPECT_NEAR(m->prior_residual(2), r.phi, 1e-12);
+  EXPECT_NEAR(m->prior_distance2, m->prior_residual.dot(Q.ldlt().solve(m->prior_residual)), 1e-9);
+}
+
+// The odometry off by 8° and 0.3 m: the correlative search finds the increment,
+// the local refinement alone from the odometry increment does not.
+TEST(ScanMatcher, TheSearchFindsAnIncrementFarOutsideTheLocalBasin) {
+  std::mt19937 rng(11);
+  const Pose2 x_WA(0.0, 0.0, 0.1);
+  const Pose2 x_WB(0.5, 0.1, 0.2);
+  const testing::SyntheticWorld w = round_room(Eigen::Vector2d(x_WB.x, x_WB.y));
+  const LaserScan A = testing::make_scan(w, x_WA, 361, 80.0, 0.01, &rng);
+  const LaserScan B = testing::make_scan(w, x_WB, 361, 80.0, 0.01, &rng);
+  const Pose2 truth = between(x_WA, x_WB);
+  const Pose2 u_hat = compose(truth, Pose2(0.21, -0.21, 8.0 * std::numbers::pi / 180.0));
+  // A prior wide enough not to decide the outcome (std 0.3 m, 0.15 rad).
+  const Eigen::Matrix3d Q = Eigen::Vector3d(0.09, 0.09, 0.0225).asDiagonal();
+  ScanMatcherConfig config;
+  const ReferenceScan reference = ReferenceScan::from(A, config);
+  const std::vector<Eigen::Vector2d> points = scan_points(B, config);
+  const std::optional<ScanMatch> m = match_scans(reference, points, u_hat, Q, config);
+  ASSERT_TRUE(m.has_value());
+  const Pose2 e = between(m->x_AB, truth);
+  // (Only the pillars' few points fix the angle: a fraction of the odometry's 0.14 rad error stays.)
+  EXPECT_LT(std::hypot(e.x, e.y), 0.02);
+  EXPECT_LT(std::abs(e.phi), 0.015);
+  ASSERT_TRUE(symmetric_positive_definite(m->covariance));
+  const Eigen::Vector3d p(e.x, e.y, e.phi);
+  EXPECT_LT(p.dot(m->covariance.ldlt().solve(p)), 16.3);
+  // The search's own pose is within half a cell and half an angular step.
+  const Pose2 s = between(m->search_pose, truth);
+  EXPECT_LT(std::hypot(s.x, s.y), 0.1);
+  EXPECT_LT(std::abs(s.phi), 0.02);
+  // The refinement alone, started at the odometry increment, keeps most of its
+  // angle error (the pillars' points are beyond its gates).
+  const std::optional<ScanMatch> local = refine_match(reference, points, u_hat, u_hat, Q, config);
+  if (local) {
+    const Pose2 l = between(local->x_AB, truth);
+    EXPECT_GT(std::abs(l.phi), 0.04) << "local refinement error " << std::hypot(l.x, l.y) << " m, " << l.phi << " rad";
+  }
+}
+
+// A row of thin posts 0.25 m apart and nothing else: shifts by one spacing
+// along the row score alike and move every point: ambiguous, refused.
+TEST(ScanMatcher, AnAmbiguousSceneIsRefused) {
+  testing::SyntheticWorld posts;
+  for (int i = -20; i <= 20; ++i) posts.discs.push_back({{3.0, 0.25 * i}, 0.05});
+  ScanMatcherConfig config;
+  const LaserScan A = testing::make_scan(posts, Pose2(), 361, 20.0);
+  const LaserScan B = testing::make_scan(posts, Pose2(0.1, 0.0, 0.0), 361, 20.0);
+  const Pose2 u_hat(0.1, 0.0, 0.0);
+  const Eigen::Matrix3d Q = odometry_like_covariance(u_hat);
+  EXPECT_FALSE(match_scans(ReferenceScan::from(A, config), scan_points(B, config), u_hat, Q, config).has_value());
+}
+
+// No usable points, too few, or a reference without normals: no estimate, no crash.
+TEST(ScanMatcher, DegenerateInputGivesNoEstimate) {
+  ScanMatcherConfig config;
+  const Pose2 u(0.5, 0.0, 0.0);
+  const Eigen::Matrix3d Q = odometry_like_covariance(u);
+  const LaserScan A = testing::make_scan(room(), Pose2(), 361);
+  const ReferenceScan reference = ReferenceScan::from(A, config);
+  // Everything "no return".
+  const LaserScan empty = testing::make_scan(testing::SyntheticWorld{}, Pose2(), 361, 20.0);
+  EXPECT_TRUE(scan_points(empty, config).empty());
+  EXPECT_FALSE(match_scans(reference, scan_points(empty, config), u, Q, config).has_value());
+  EXPECT_FALSE(match_scans(ReferenceScan::from(empty, config), scan_points(A, config), u, Q, config).has_value());
+  EXPECT_FALSE(match_scans(ReferenceScan(), scan_points(A, config), u, Q, config).has_value());
+  // Non-finite points.
+  const std::vector<Eigen::Vector2d> nan_points(100, Eigen::Vector2d(std::nan(""), 1.0));
+  EXPECT_FALSE(match_scans(reference, nan_points, u, Q, config).has_value());
+  // A handful of points.
+  std::vector<Eigen::Vector2d> few = scan_points(A, config);
+  few.resize(10);
+  EXPECT_FALSE(match_scans(reference, few, u, Q, config).has_value());
+  // Points with no counterpart in the reference (a scan from elsewhere, far away).
+  std::vector<Eigen::Vector2d> far = scan_points(A, config);
+  for (Eigen::Vector2d& p : far) p += Eigen::Vector2d(100.0, 0.0);
+  EXPECT_FALSE(match_scans(reference, far, u, Q, config).has_value());
 }
 
 TEST(ScanMatcher, BadInputIsRejected) {
@@ -191,10 +305,32 @@ TEST(ScanMatcher, ReferencePointsHaveUnitNormalsFacingTheSensor) {
   ScanMatcherConfig config;
   const LaserScan A = testing::make_scan(room(), Pose2(0.5, 0.5, 0.3), 361);
   const ReferenceScan reference = ReferenceScan::from(A, config);
-  ASSERT_GT(reference.points.size(), 250u);
-  for (std::size_t i = 0; i < reference.points.size(); ++i) {
-    EXPECT_NEAR(reference.normals[i].norm(), 1.0, 1e-12);
-    EXPECT_LT(reference.normals[i].dot(reference.points[i]), 0.0);
+  ASSERT_GT(reference.size(), 250u);
+  for (std::size_t i = 0; i < reference.size(); ++i) {
+    EXPECT_NEAR(reference.normals()[i].norm(), 1.0, 1e-12);
+    EXPECT_LT(reference.normals()[i].dot(reference.points()[i]), 0.0);
+  }
+}
+
+TEST(ScanMatcher, NearestReferencePointMatchesExhaustiveSearch) {
+  ScanMatcherConfig config;
+  const ReferenceScan reference = ReferenceScan::from(testing::make_scan(room(), Pose2(0.5, 0.5, 0.3), 361), config);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> coordinate(-3.0, 11.0);
+  for (int trial = 0; trial < 500; ++trial) {
+    const Eigen::Vector2d q(coordinate(rng), coordinate(rng));
+    for (const double gate : {0.1, 0.25, 0.7}) {
+      int expected = -1;
+      double best = gate * gate;
+      for (std::size_t j = 0; j < reference.size(); ++j) {
+        const double d2 = (reference.points()[j] - q).squaredNorm();
+        if (d2 < best) {
+          best = d2;
+          expected = static_cast<int>(j);
+        }
+      }
+      EXPECT_EQ(reference.nearest(q, gate), expected) << q.transpose() << " gate " << gate;
+    }
   }
 }
 
