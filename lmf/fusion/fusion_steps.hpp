@@ -7,7 +7,7 @@
 //   step 2   gate                             cheap geometric pre-filter of the pairs
 //   step 2   test_individual_compatibility    eq. (12) measurements, chi2 (eq. 8) + overlap
 //   step 3   test_joint_compatibility         incremental joint compatibility
-//   step 3   update                           one EKF update (eq. 9), careful inversion (§6)
+//   step 3   update_with_pairings             one EKF update (eq. 9), careful inversion (§6)
 //   step 4   update_geometry                  extend paired globals, drop used locals,
 //                                             fuse globals that matched one local segment
 //   step 5   make_new_submap                  unpaired local segments: new submap F_new
@@ -109,7 +109,7 @@ void test_individual_compatibility(FusionContext& f);
 void test_joint_compatibility(FusionContext& f);
 
 // Step 3: one EKF update with every accepted pairing (eq. 9, DESIGN §6).
-void update(FusionContext& f);
+void update_with_pairings(FusionContext& f);
 
 // Step 4: geometric update of the paired global segments, removal of the used
 // local segments, fusion of global segments that matched one local segment.

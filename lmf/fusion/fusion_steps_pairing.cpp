@@ -346,7 +346,7 @@ void test_joint_compatibility(FusionContext& f) {
   }
 }
 
-void update(FusionContext& f) {
+void update_with_pairings(FusionContext& f) {
   FusionReport& rep = f.report;
   rep.pairings_accepted = static_cast<int>(f.accepted.size());
   rep.update_dimension = f.state.dimension();
