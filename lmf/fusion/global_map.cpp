@@ -40,6 +40,7 @@ std::string where(int robot_id, std::int64_t seq) {
 
 using Reason = InvalidInput::Reason;
 
+// The config once validate() has passed it (it throws), before any member is built from it.
 GlobalMapConfig validated(const GlobalMapConfig& config) {
   config.validate();
   return config;
