@@ -10,7 +10,8 @@
 // W is the local frame of the first robot's first local map (or whatever the
 // caller's join_robot() poses say).
 //
-// fuse() applies every step of DESIGN §5 to one LocalMapSnapshot: augmentation,
+// fuse() applies every step of DESIGN §5 to one LocalMapSnapshot, one function
+// per step (fusion_steps.hpp): augmentation,
 // implicit measurements (eq. 12) with a geometric gate, an individual chi2 test
 // and an overlap test (several pairings per local segment allowed), incremental
 // joint compatibility, one EKF update through the careful inversion (§6),
@@ -27,6 +28,8 @@
 // arrive out of order, wait in a queue and are fused in sequence order as soon
 // as their frame is known; none is dropped. A local map older than the first
 // known frame of its robot is anchored backwards (L_k = L_{k+1} ⊕ ⊖x_R(k)).
+// RobotArrivals (robot_arrivals.hpp) keeps that schedule; the submaps and the
+// graph are an EnvironmentGraph (environment_graph.hpp).
 //
 // Failure: bad input (a snapshot with wrong sizes, NaN/inf, an asymmetric or
 // indefinite covariance, a (robot, seq) already fused or queued; a bad pose or
@@ -49,8 +52,10 @@
 
 #include <Eigen/Core>
 
+#include "lmf/fusion/environment_graph.hpp"
 #include "lmf/fusion/fusion_equations.hpp"
 #include "lmf/fusion/global_state.hpp"
+#include "lmf/fusion/robot_arrivals.hpp"
 #include "lmf/fusion/robot_footprints.hpp"
 #include "lmf/geometry/pose2.hpp"
 #include "lmf/local_map/local_map_snapshot.hpp"
@@ -265,13 +270,6 @@ struct SubmapView {
   int segments = 0;
 };
 
-struct GraphEdge {
-  enum class Kind { kConsecutive, kPaired };
-  EntityId a = 0;  // submap frames, a < b
-  EntityId b = 0;
-  Kind kind = Kind::kPaired;
-};
-
 enum class SightingStatus {
   kJoined,               // the observed robot joined through this sighting
   kJoinedApproximately,  // joined, but the observer's frame at that time came from
@@ -337,48 +335,21 @@ class GlobalMap {
 
  private:
   friend class GlobalMapArchive;  // global_map_archive.cpp: exact save/restore
-  struct FrameSlot {
-    EntityId frame = 0;
-    std::optional<EntityId> robot;  // pre-placed robot of a backward-anchored local map
-  };
-  struct RobotRecord {
-    bool joined = false;
-    std::int64_t next_seq = 0;  // the local map whose origin the forward frame is
-    std::int64_t min_seq = 0;   // lowest seq whose frame is known
-    std::map<std::int64_t, FrameSlot> frames;  // frames still needed, by seq
-    std::map<std::int64_t, LocalMapSnapshot> queue;
-    std::set<std::int64_t> fused;
-    std::map<std::int64_t, std::pair<Pose2, Eigen::Matrix3d>> history;  // frame of fused seqs
-  };
-  struct SubmapRecord {
-    EntityId frame = 0;
-    int robot_id = 0;
-    std::int64_t seq = 0;
-  };
+  // Whether a drain resolves the pending sightings after each fusion: it does
+  // when it runs for a public call; it does not when it runs inside
+  // resolve_sightings(), whose loop picks up what the fusions changed. (Up to
+  // archive version 4 a re-entrancy flag of the map did this, and was archived.)
+  enum class Sightings { kResolveAfterEachFusion, kLeaveToCaller };
 
-  RobotRecord& robot(int robot_id) { return robots_[robot_id]; }
-  void join(int robot_id, EntityId frame, std::int64_t seq, std::vector<FusionReport>& out);
-  void prepare_backward(int robot_id, std::int64_t seq);
-  void drain(int robot_id, std::vector<FusionReport>& out);
+  void join(int robot_id, EntityId frame, std::int64_t seq, Sightings sightings, std::vector<FusionReport>& out);
+  void drain(int robot_id, Sightings sightings, std::vector<FusionReport>& out);
   void resolve_sightings(std::vector<FusionReport>& out);
-  std::optional<SightingStatus> try_resolve(const RobotSighting& sighting, std::vector<FusionReport>& out);
+  // Joins the sighted robot if its observer's frame is known; nullopt (and no
+  // change) if not. kIgnored when it has joined already.
+  std::optional<SightingStatus> resolve(const RobotSighting& sighting, Sightings sightings,
+                                        std::vector<FusionReport>& out);
+  // The steps of fusion_steps.hpp, in order, on the local map whose frame is known.
   FusionReport fuse_one(int robot_id, const LocalMapSnapshot& snapshot);
-  void retire_frames(int robot_id, std::vector<EntityId>& removals);
-  // Geometric update of one global segment: its location and length change at
-  // once; the matching change of its perturbation is composed into `shifts`,
-  // for one GlobalState::transform_perturbations over all extended segments.
-  void extend_to_cover(EntityId segment, const spmap::Interval& interval,
-                       std::map<EntityId, Eigen::Matrix2d>& shifts);
-  // Adds the snapshot's scan poses (in W, L_r as fused) to the footprints and
-  // appends every segment inside a footprint to `removals`.
-  void remove_footprint_segments(const LocalMapSnapshot& snapshot, const Pose2& x_WL,
-                                 std::vector<EntityId>& removals, FusionReport& report);
-  // Appends to `removals`, for each segment in `added` that crosses another
-  // segment staying in the map, the one of the two with the larger angular
-  // variance (crossing_segments.hpp).
-  void remove_crossing_segments(const std::vector<EntityId>& added, std::vector<EntityId>& removals,
-                                FusionReport& report) const;
-  bool is_submap(EntityId frame) const;
   // What is wrong with a pose from outside (" is not finite", ...), if anything.
   std::optional<std::pair<InvalidInput::Reason, std::string>> pose_problem(const Pose2& pose) const;
   void check_pose(const Pose2& pose, const std::string& what) const;
@@ -386,13 +357,9 @@ class GlobalMap {
 
   GlobalMapConfig config_;
   GlobalState state_;
-  std::map<int, RobotRecord> robots_;
-  std::vector<SubmapRecord> submaps_;
-  std::set<std::pair<EntityId, EntityId>> paired_edges_;
-  std::deque<RobotSighting> pending_sightings_;
+  RobotArrivals arrivals_;
+  EnvironmentGraph graph_;
   std::optional<RobotFootprints> footprints_;  // when footprint_radius_m > 0
-  bool any_joined_ = false;
-  bool resolving_ = false;
 };
 
 }  // namespace lmf::fusion

@@ -96,7 +96,7 @@ class GlobalMapArchive {
 //   submaps     u64 count + (i64 frame, i32 robot_id, i64 seq)
 //   edges       u64 count + (i64 a, i64 b)
 //   sightings   u64 count + pending RobotSighting (see write_sighting)
-//   flags       u8 any_joined, u8 resolving
+//   flags       u8 any_joined (version 4 had a second u8 here, always 0)
 //   footprints  u64 count + (f64 x, f64 y) in the order added (0 when off)
 void GlobalMapArchive::write_config(ArchiveWriter& w, const GlobalMapConfig& c) {
   for (const double v : {c.alpha, c.gate_angle_rad, c.gate_distance_m, c.gate_gap_m, c.gate_sigmas, c.min_overlap_m,
@@ -206,8 +206,9 @@ void GlobalMapArchive::read_state(ArchiveReader& r, GlobalState& s) {
 void GlobalMapArchive::write(ArchiveWriter& w, const GlobalMap& map) {
   write_config(w, map.config_);
   write_state(w, map.state_);
-  w.count(map.robots_.size());
-  for (const auto& [id, rec] : map.robots_) {
+  const RobotArrivals& arrivals = map.arrivals_;
+  w.count(arrivals.robots_.size());
+  for (const auto& [id, rec] : arrivals.robots_) {
     w.i32(id);
     w.boolean(rec.joined);
     w.i64(rec.next_seq);
@@ -233,21 +234,20 @@ void GlobalMapArchive::write(ArchiveWriter& w, const GlobalMap& map) {
       w.matrix3(frame.second);
     }
   }
-  w.count(map.submaps_.size());
-  for (const GlobalMap::SubmapRecord& s : map.submaps_) {
+  w.count(map.graph_.submaps_.size());
+  for (const SubmapRecord& s : map.graph_.submaps_) {
     w.i64(s.frame);
     w.i32(s.robot_id);
     w.i64(s.seq);
   }
-  w.count(map.paired_edges_.size());
-  for (const auto& [a, b] : map.paired_edges_) {
+  w.count(map.graph_.paired_edges_.size());
+  for (const auto& [a, b] : map.graph_.paired_edges_) {
     w.i64(a);
     w.i64(b);
   }
-  w.count(map.pending_sightings_.size());
-  for (const RobotSighting& s : map.pending_sightings_) write_sighting(w, s);
-  w.boolean(map.any_joined_);
-  w.boolean(map.resolving_);
+  w.count(arrivals.pending_sightings_.size());
+  for (const RobotSighting& s : arrivals.pending_sightings_) write_sighting(w, s);
+  w.boolean(arrivals.any_joined_);
   const std::vector<Eigen::Vector2d> none;
   const std::vector<Eigen::Vector2d>& footprints = map.footprints_ ? map.footprints_->positions() : none;
   w.count(footprints.size());
@@ -264,11 +264,12 @@ GlobalMap GlobalMapArchive::read(ArchiveReader& r) {
   const auto require_entity = [&](EntityId id, const std::string& what) {
     if (!state.contains(id)) r.fail("corrupt map: " + what + " refers to unknown entity " + std::to_string(id));
   };
+  RobotArrivals& arrivals = map.arrivals_;
   const std::size_t robots = r.count(41);
   for (std::size_t i = 0; i < robots; ++i) {
     const int id = r.i32();
-    if (map.robots_.count(id) != 0) r.fail("corrupt map: robot " + std::to_string(id) + " twice");
-    GlobalMap::RobotRecord& rec = map.robots_[id];
+    if (arrivals.robots_.count(id) != 0) r.fail("corrupt map: robot " + std::to_string(id) + " twice");
+    RobotArrivals::Robot& rec = arrivals.robots_[id];
     const std::string who = "robot " + std::to_string(id);
     rec.joined = r.boolean();
     rec.next_seq = r.i64();
@@ -276,7 +277,7 @@ GlobalMap GlobalMapArchive::read(ArchiveReader& r) {
     const std::size_t frames = r.count(25);
     for (std::size_t k = 0; k < frames; ++k) {
       const std::int64_t seq = r.i64();
-      GlobalMap::FrameSlot slot;
+      RobotArrivals::FrameSlot slot;
       slot.frame = r.i64();
       const bool has_robot = r.boolean();
       const std::int64_t robot = r.i64();
@@ -306,24 +307,21 @@ GlobalMap GlobalMapArchive::read(ArchiveReader& r) {
   }
   const std::size_t submaps = r.count(20);
   for (std::size_t i = 0; i < submaps; ++i) {
-    GlobalMap::SubmapRecord s;
-    s.frame = r.i64();
-    s.robot_id = r.i32();
-    s.seq = r.i64();
-    require_entity(s.frame, "submap");
-    map.submaps_.push_back(s);
+    const EntityId frame = r.i64();
+    const int robot_id = r.i32();
+    const std::int64_t seq = r.i64();
+    require_entity(frame, "submap");
+    map.graph_.add_submap(frame, robot_id, seq);
   }
   const std::size_t edges = r.count(16);
   for (std::size_t i = 0; i < edges; ++i) {
     const EntityId a = r.i64();
     const EntityId b = r.i64();
-    map.paired_edges_.insert({a, b});
+    map.graph_.paired_edges_.insert({a, b});
   }
   const std::size_t pending = r.count(8);
-  for (std::size_t i = 0; i < pending; ++i) map.pending_sightings_.push_back(read_sighting(r));
-  map.any_joined_ = r.boolean();
-  map.resolving_ = r.boolean();
-  if (map.resolving_) r.fail("corrupt map: archived in the middle of resolving sightings");
+  for (std::size_t i = 0; i < pending; ++i) arrivals.add_pending(read_sighting(r));
+  arrivals.any_joined_ = r.boolean();
   const std::size_t footprints = r.count(16);
   if (footprints > 0 && !map.footprints_) r.fail("corrupt map: robot footprints with footprint_radius_m 0");
   for (std::size_t i = 0; i < footprints; ++i) {

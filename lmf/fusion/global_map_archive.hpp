@@ -7,7 +7,7 @@
 // the covariance buffer and the lower triangle of P, diagonal included); every
 // robot record (joined, next_seq, min_seq, frames still needed, local maps
 // waiting in its queue, fused seqs, frame history); submaps, paired graph
-// edges, sightings still pending, and the flags. Doubles are stored as their
+// edges, sightings still pending, whether any robot has joined. Doubles are stored as their
 // IEEE-754 bits, so nothing is rounded. The capacity is restored too, so P's
 // columns sit at the same strides as before (Eigen's kernels then see the same
 // memory layout).
@@ -43,7 +43,11 @@ namespace lmf::fusion {
 // 2: GlobalMapConfig::local_map_covariance_scale. 3: robot footprints
 // (GlobalMapConfig::footprint_radius_m and the recorded positions). 4: crossing
 // segments (GlobalMapConfig::crossing_*, FusionReport::crossing_segments_removed).
-inline constexpr std::uint32_t kGlobalMapArchiveVersion = 4;
+// 5: the map's transient "resolving sightings" flag is no longer stored (it
+// was always false between calls; GlobalMap no longer has one). Older
+// versions are refused by name ("older version"), never read with this layout:
+// a server that finds one starts from its next good snapshot or from empty.
+inline constexpr std::uint32_t kGlobalMapArchiveVersion = 5;
 
 // The binary archive primitives (lmf/io/binary_archive.hpp), under the names
 // the map's archive has always used.

@@ -7,6 +7,8 @@
 // All functions are pure and thread-safe.
 #pragma once
 
+#include <cmath>
+
 #include <Eigen/Core>
 
 namespace lmf {
@@ -29,6 +31,9 @@ struct Pose2 {
   // The point p (given in this frame) expressed in the parent frame.
   Eigen::Vector2d transform_point(const Eigen::Vector2d& p) const;
 };
+
+// True when x, y and phi are all finite (no NaN, no inf).
+inline bool finite(const Pose2& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.phi); }
 
 // a ⊕ b: x_AC = compose(x_AB, x_BC).
 Pose2 compose(const Pose2& a, const Pose2& b);

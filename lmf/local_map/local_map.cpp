@@ -22,8 +22,6 @@ namespace {
 using spmap::EntityId;
 using spmap::EntityKind;
 
-bool finite(const Pose2& x) { return std::isfinite(x.x) && std::isfinite(x.y) && std::isfinite(x.phi); }
-
 // An observation the filter can use: finite, positive length, covariance
 // symmetric positive semidefinite. Sensor data never aborts: others are skipped.
 bool usable(const ObservedSegment& e) {

@@ -1,6 +1,7 @@
 #include "lmf/geometry/pose2.hpp"
 
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <vector>
 
@@ -40,6 +41,15 @@ TEST(WrapAngle, MapsIntoHalfOpenInterval) {
     EXPECT_NEAR(std::sin(w), std::sin(a), 1e-12);
     EXPECT_NEAR(std::cos(w), std::cos(a), 1e-12);
   }
+}
+
+TEST(Pose2, FiniteChecksEveryComponent) {
+  EXPECT_TRUE(finite(Pose2(1.0, -2.0, 0.5)));
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(finite(Pose2(nan, 0.0, 0.0)));
+  EXPECT_FALSE(finite(Pose2(0.0, inf, 0.0)));
+  EXPECT_FALSE(finite(Pose2(0.0, 0.0, -inf)));
 }
 
 TEST(Pose2, ComposeMatchesDesignFormula) {
