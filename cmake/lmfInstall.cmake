@@ -14,7 +14,7 @@
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
-# The core modules of lmf/ (pure, synchronous; DESIGN §7) and the generated LCM
+# The core modules of lmf/ (pure, synchronous; docs/design.md §7) and the generated LCM
 # types. runtime/ and the process nodes are not exported: they are the programs'
 # internals, and their headers are not under lmf/.
 set(LMF_EXPORTED_MODULES

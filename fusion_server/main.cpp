@@ -1,4 +1,4 @@
-// lmf-server: the fusion server process (DESIGN §1, §5, §7). Parses flags,
+// lmf-server: the fusion server process (docs/design.md §1, §5, §7). Parses flags,
 // loads the global_map section of a mission config, runs ServerNode on the
 // event loop; SIGUSR1 writes the outputs now, SIGINT/SIGTERM finish the
 // fusion in progress, write them and exit 0. With --replay CAPTURE it fuses an

@@ -121,7 +121,7 @@ ServerNode::ServerNode(runtime::Bus& bus, runtime::EventLoop& loop, runtime::Cha
   if (!options_.state_dir.empty()) {
     recover_state();  // joins the first robot itself when the state is new
   } else if (options_.first_robot) {
-    record_fusions(map_.join_robot(*options_.first_robot, Pose2()), 0.0);  // L = W (DESIGN §5)
+    record_fusions(map_.join_robot(*options_.first_robot, Pose2()), 0.0);  // L = W (docs/design.md §5)
   }
   if (options_.first_robot) seqs_[*options_.first_robot];
   view_ = make_view();

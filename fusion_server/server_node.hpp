@@ -1,4 +1,4 @@
-// The fusion server (DESIGN §1, §5, §7; docs: /work/brief/protocol.md): LCM in,
+// The fusion server (docs/design.md §1, §5, §7): LCM in,
 // GlobalMap in a background worker, acknowledgements, corrected frames, map
 // summaries and status out, map/trajectory/report files on request and at exit.
 //

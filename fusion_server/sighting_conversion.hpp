@@ -1,5 +1,5 @@
 // The sighting as it travels (runtime::Sighting, decoded and validated from
-// sighting_t) as the GlobalMap takes it: the same fields (DESIGN §5, joining).
+// sighting_t) as the GlobalMap takes it: the same fields (docs/design.md §5, joining).
 // Here because the server is what knows both: runtime does not depend on the
 // fusion core, nor the core on runtime.
 #pragma once

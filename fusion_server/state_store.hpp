@@ -1,4 +1,4 @@
-// The fusion server's durable state in --state DIR (issue 6): a checksummed
+// The fusion server's durable state in --state DIR: a checksummed
 // snapshot of everything the server knows, plus an append-only journal of
 // every input accepted since, so that a server killed at any instant restarts
 // with the same map it would have had, and nothing it acknowledged is lost.

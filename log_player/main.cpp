@@ -1,5 +1,5 @@
 // lmf-player: replays CARMEN logs or an lmf-sim folder as live robots over LCM
-// (DESIGN §1). See --help and log_player/player_node.hpp.
+// (docs/design.md §1). See --help and log_player/player_node.hpp.
 #include <unistd.h>
 
 #include <chrono>

@@ -1,4 +1,4 @@
-// The log player (DESIGN §1): replays recorded or simulated robots over LCM as
+// The log player (docs/design.md §1): replays recorded or simulated robots over LCM as
 // if they were running now, with the robot-robot sightings that let robots join.
 //
 //   LMF_SCAN_<id>   out  each robot's scans, seq from 0 (the scan's index)

@@ -1,4 +1,4 @@
-// lmf-monitor: the system at a glance (DESIGN §1), live from LCM or from an
+// lmf-monitor: the system at a glance (docs/design.md §1), live from LCM or from an
 // lcm-logger file; a refreshing table or JSON lines; optional SVG map and the
 // paper's Fig. 8 timing plot.
 #include <unistd.h>

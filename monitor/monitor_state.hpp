@@ -1,4 +1,4 @@
-// What lmf-monitor knows of the system, built only from messages (DESIGN §1:
+// What lmf-monitor knows of the system, built only from messages (docs/design.md §1:
 // "a monitor shows the whole system as a refreshing text view or JSON lines,
 // live or from an lcm-logger capture, and draws the map"). No LCM I/O here:
 // MonitorNode feeds it decoded messages with their receive time (wall clock

@@ -277,7 +277,7 @@ std::optional<std::int64_t> AgentNode::ship() {
   shipped_final_x_LR_[snapshot.seq] = snapshot.x_LR;
   auto msg = rt::to_message(snapshot);
   if (!msg) {
-    // An indefinite covariance must not leave (DESIGN §8); the map is lost
+    // An indefinite covariance must not leave (docs/design.md §8); the map is lost
     // and the server will see a gap in this robot's seq numbers.
     ++counters_.ship_failures;
     std::cerr << "lmf-agent " << options_.robot_id << ": local map " << snapshot.seq

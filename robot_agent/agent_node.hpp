@@ -1,4 +1,4 @@
-// The robot agent (DESIGN §1, §4, §7): LCM <-> one robot's LocalMap.
+// The robot agent (docs/design.md §1, §4, §7): LCM <-> one robot's LocalMap.
 //
 //   LMF_SCAN_<id>        in   every scan goes through LocalMap::process_scan
 //                             (timed with steady_clock); when the map should

@@ -1,4 +1,4 @@
-// What a robot agent persists to resume after a crash (issue 6: kill -9 and
+// What a robot agent persists to resume after a crash (kill -9 and
 // restart an agent, nothing the server acknowledged — nor anything shipped —
 // is lost). One file per robot in the agent's --state folder.
 //

@@ -1,4 +1,4 @@
-// lmf-agent: one robot's local map over LCM (DESIGN §1, §4). See --help and
+// lmf-agent: one robot's local map over LCM (docs/design.md §1, §4). See --help and
 // robot_agent/agent_node.hpp for the protocol.
 #include <chrono>
 #include <cstdint>

@@ -1,4 +1,4 @@
-// Optional authenticated messages (issue 6, part 4): who may say what on the
+// Optional authenticated messages: who may say what on the
 // bus, and proof that they said it.
 //
 // Every process holds a keys file: the 32-byte key of the principal it signs

@@ -1,4 +1,4 @@
-// LCM channel names, defined once (DESIGN §7): upper case, with a common prefix
+// LCM channel names, defined once (docs/design.md §7): upper case, with a common prefix
 // that every process takes from --channel-prefix (default "LMF_"), so two
 // systems can share one network without hearing each other.
 //

@@ -455,7 +455,7 @@ Checked<LocalMapSnapshot> from_message(const lmf::local_map_t& msg, const Decode
     return reject(RejectReason::kWrongSize, "local_map_t: num_segments " + to_string(msg.num_segments) + " but " +
                                                 to_string(msg.segments.size()) + " segments");
   }
-  const int n = 3 + 2 * msg.num_segments;  // DESIGN §7: robot (3) then 2 per segment
+  const int n = 3 + 2 * msg.num_segments;  // docs/design.md §7: robot (3) then 2 per segment
   if (msg.num_covariance != packed_size(n) || msg.covariance.size() != static_cast<std::size_t>(packed_size(n))) {
     return reject(RejectReason::kWrongSize, "local_map_t.covariance: num_covariance " + to_string(msg.num_covariance) +
                                                 " with " + to_string(msg.covariance.size()) + " values; n = " +

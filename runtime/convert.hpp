@@ -1,4 +1,4 @@
-// THE one place where LCM messages meet core types (DESIGN §2, §8).
+// THE one place where LCM messages meet core types (docs/design.md §2, §8).
 //
 // Three layers, each usable alone:
 //  1. decode_message<Msg>(bytes): fingerprint, byte limit and array counts are

@@ -1,6 +1,6 @@
 // Plain values carried by the LCM messages that have no home in the core yet
 // (no LCM inside: the core may take these by value). Frames and units as in
-// DESIGN §3: x_AB is frame B seen from frame A, metres and radians.
+// docs/design.md §3: x_AB is frame B seen from frame A, metres and radians.
 #pragma once
 
 #include <cstdint>
@@ -22,7 +22,7 @@ struct RobotScan {
 
 // "Agent robot_id has processed scan seq" (lockstep replay), with the agent's
 // state after that scan (and after shipping, if the scan made the map ship):
-// what a sighting at that time needs from this robot (DESIGN §5, joining).
+// what a sighting at that time needs from this robot (docs/design.md §5, joining).
 struct ScanAck {
   std::int64_t utime = 0;
   int robot_id = 0;
@@ -56,7 +56,7 @@ struct SightingAck {
   Status status = Status::kApplied;
 };
 
-// The corrected local-map frame L_r of one joined robot (DESIGN §5 step 6).
+// The corrected local-map frame L_r of one joined robot (docs/design.md §5 step 6).
 struct CorrectedFrame {
   int robot_id = 0;
   std::int64_t last_applied_seq = -1;  // last local map fused for this robot, -1 if none
@@ -71,7 +71,7 @@ struct CorrectedFrames {
 };
 
 // Robot B (observed_id) seen from robot A (observer_id) at utime: lets B join
-// (DESIGN §5). Besides the measurement x_AB it carries where each robot was in
+// (docs/design.md §5). Besides the measurement x_AB it carries where each robot was in
 // its own local map at that moment, which the server cannot know by itself.
 // Mirrors lmf::fusion::RobotSighting field by field.
 struct Sighting {

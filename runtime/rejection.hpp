@@ -1,4 +1,4 @@
-// Why an incoming message was refused, and how often (DESIGN §8).
+// Why an incoming message was refused, and how often (docs/design.md §8).
 //
 // Every decode and every conversion in runtime/convert.hpp returns a Checked<T>:
 // either the value or a Rejection with a stable reason code. Processes count

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Long fuzz runs of every target in tests/fuzz (issue 6, hostile input) under
+# Long fuzz runs of every target in tests/fuzz under
 # AddressSanitizer + UndefinedBehaviorSanitizer, with a summary table.
 #   scripts/fuzz.sh [--runs N] [--seed S] [--targets "t1 t2"] [--libfuzzer]
 # Default: the standalone driver lmf-fuzz from the sanitizer tree

@@ -153,7 +153,7 @@ int run(const Options& o) {
 int main(int argc, char** argv) {
   Options o;
   po::options_description options(
-      "lmf-local-map-svg: run one robot's local map (DESIGN §4, shipping disabled) over scans of a CARMEN\n"
+      "lmf-local-map-svg: run one robot's local map (docs/design.md §4, shipping disabled) over scans of a CARMEN\n"
       "log and draw it in the local frame L (the robot's pose at the first scan): segments in red with\n"
       "their 2-sigma lateral bands (green tick: the side they were seen from), the filtered robot path\n"
       "in blue with the final 2-sigma position ellipse, the last scan's points in grey and, with --gt,\n"

@@ -2,7 +2,7 @@
 // re-observed) into global maps of about 100, 500, 1000, 2000 and 4000
 // segments, next to one rank-k update of a covariance lower triangle of the same
 // size (k = rows kept by that fusion's EKF update), measured in the same loop.
-// DESIGN §9: the fusion's cost is bounded below by that update; the ratio is
+// docs/design.md §9: the fusion's cost is bounded below by that update; the ratio is
 // the overhead of everything else (target <= 2).
 //
 // The global maps are built by fusing synthetic local maps, one per 12 m cell

@@ -2,7 +2,7 @@
 // (prediction, pairing, joint compatibility, EKF update, geometric update,
 // fusion, additions, constraints, covariance check) with about 20, 80 and 170
 // map segments (paper §II.B: 170 features was the real-time limit of the
-// original; DESIGN §4: "we aim far below" 10 ms).
+// original; docs/design.md §4: "we aim far below" 10 ms).
 //
 // The maps are built by driving the local map itself down a synthetic corridor
 // (walls broken by doorways, a room wall at every doorway) with seeded odometry

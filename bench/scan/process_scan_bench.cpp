@@ -1,6 +1,6 @@
 // The local map's whole per-scan step, LocalMap::process_scan (scan match
 // against the recent scans, segment extraction, EKF update and the rest of
-// DESIGN §4, with ship-and-reset every ~10 m as the agent does), on every scan
+// docs/design.md §4, with ship-and-reset every ~10 m as the agent does), on every scan
 // of belgioioso-realodo (361 beams, odometry like a real robot's) in order, or
 // on a synthetic room when the shared datasets are absent. One iteration is
 // one scan; besides the mean, the counters give the per-scan CPU time's p50,

@@ -1,6 +1,6 @@
 // Segment extraction on one 361-beam scan: a real belgioioso scan when the
 // shared datasets are present, else a synthetic corridor scan. The real-time
-// budget of a 5 Hz laser is 200 ms per scan for the whole agent (DESIGN §4).
+// budget of a 5 Hz laser is 200 ms per scan for the whole agent (docs/design.md §4).
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>

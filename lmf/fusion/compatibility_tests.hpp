@@ -1,5 +1,5 @@
-// The chi2 tests of the fusion (paper eq. 8; DESIGN §5 steps 2-4) through the
-// careful inversion of the innovation covariance (DESIGN §6).
+// The chi2 tests of the fusion (paper eq. 8; docs/design.md §5 steps 2-4) through the
+// careful inversion of the innovation covariance (docs/design.md §6).
 //
 // Pure and synchronous; a Chi2Table is not thread-safe (it caches).
 #pragma once

@@ -1,4 +1,4 @@
-// The environment graph (DESIGN §5 step 7): the submap frames F_i are its
+// The environment graph (docs/design.md §5 step 7): the submap frames F_i are its
 // nodes; an edge joins consecutive submaps of one robot (by local map number)
 // and every pair of submaps whose segments were paired in one fusion.
 //

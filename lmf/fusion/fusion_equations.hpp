@@ -1,6 +1,6 @@
 // The relations the global map applies when it fuses a local map, each as a
 // value plus Jacobians with respect to the perturbations involved (perturbations
-// in each entity's own frame, DESIGN §3). Every Jacobian here has a
+// in each entity's own frame, docs/design.md §3). Every Jacobian here has a
 // finite-difference test in tests/fusion.
 //
 // Frames: W global, L_r a robot's local-map frame, F_n a submap frame, R the
@@ -18,14 +18,14 @@
 
 namespace lmf::fusion {
 
-// Paper eq. (12), DESIGN §5.2: h = B(⊖x_FnSi ⊖ x_WFn ⊕ x_WLr ⊕ x_LrSj) = 0 between
+// Paper eq. (12), docs/design.md §5.2: h = B(⊖x_FnSi ⊖ x_WFn ⊕ x_WLr ⊕ x_LrSj) = 0 between
 // the global segment S_i (child of its submap F_n) and the local segment S_j
 // (child of L_r), both already in `state`. 2 rows (lateral, angle), R = 0:
 // with both segments in the state the pairing is a perfect constraint.
 spmap::ImplicitMeasurement pairing_measurement(const GlobalState& state, EntityId global_segment,
                                                EntityId local_segment);
 
-// L_r ← L_r ⊕ x_R (DESIGN §5.6): the next local frame is the robot's final pose.
+// L_r ← L_r ⊕ x_R (docs/design.md §5.6): the next local frame is the robot's final pose.
 // With x_WL = x̂_WL ⊕ p_L and x_LR = x̂_LR ⊕ p_R, the new frame's perturbation is
 // p_L' = J_L p_L + J_R p_R (to first order) around x̂_WL' = x̂_WL ⊕ x̂_LR.
 struct FrameAdvance {
@@ -45,7 +45,7 @@ struct PreviousFrame {
 };
 PreviousFrame previous_frame(const Pose2& x_WL_next, const Pose2& x_LR);
 
-// A robot-robot sighting (paper §IV, DESIGN §5): observer A sees robot B.
+// A robot-robot sighting (paper §IV, docs/design.md §5): observer A sees robot B.
 // The sighting carries what the server cannot know by itself: where each robot
 // was in its own local map at that moment. Its agent knows it (the current
 // filtered pose and its marginal covariance); a player emulating robots from

@@ -1,5 +1,5 @@
 // The fusion of one local map into the global map, step by step (paper §II.C,
-// §III; DESIGN §5 steps 1-7, then the steps beyond the paper). GlobalMap::fuse
+// §III; docs/design.md §5 steps 1-7, then the steps beyond the paper). GlobalMap::fuse
 // runs them in this order on one FusionContext; each reads what the earlier
 // ones left there and adds its own part, and each can be run and timed on its own.
 //
@@ -108,7 +108,7 @@ void test_individual_compatibility(FusionContext& f);
 // Step 3: incremental joint compatibility, best individual distance first.
 void test_joint_compatibility(FusionContext& f);
 
-// Step 3: one EKF update with every accepted pairing (eq. 9, DESIGN §6).
+// Step 3: one EKF update with every accepted pairing (eq. 9, docs/design.md §6).
 void update_with_pairings(FusionContext& f);
 
 // Step 4: geometric update of the paired global segments, removal of the used

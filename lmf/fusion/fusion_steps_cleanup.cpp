@@ -117,7 +117,7 @@ void check_pivots(const Eigen::MatrixXd& M, FusionReport& rep) {
 }  // namespace
 
 void check_health(FusionContext& f, EntityId current_frame) {
-  // Covariance supervision (DESIGN §4, §9): cheap by default.
+  // Covariance supervision (docs/design.md §4, §9): cheap by default.
   const GlobalState& state = f.state;
   FusionReport& rep = f.report;
   rep.health_scope = f.config.health;

@@ -1,4 +1,4 @@
-// Steps 4-7 of the fusion (DESIGN §5): geometric update and fusion of global
+// Steps 4-7 of the fusion (docs/design.md §5): geometric update and fusion of global
 // segments, the new submap, the frame advance and the environment graph
 // (fusion_steps.hpp).
 #include <algorithm>
@@ -15,7 +15,7 @@ namespace {
 // Geometric update of one global segment (paper §II.C): its location and
 // length change at once to cover the projection `interval`; moving its frame
 // by dx along its axis changes the meaning of its lateral error,
-// p' = [[1, dx], [0, 1]] p (DESIGN §3). That change is composed into `shifts`,
+// p' = [[1, dx], [0, 1]] p (docs/design.md §3). That change is composed into `shifts`,
 // for one GlobalState::transform_perturbations over all extended segments.
 void extend_to_cover(GlobalState& state, EntityId segment, const spmap::Interval& interval,
                      std::map<EntityId, Eigen::Matrix2d>& shifts) {

@@ -1,4 +1,4 @@
-// Steps 1-3 of the fusion (DESIGN §5): augmentation, the pairing tests and the
+// Steps 1-3 of the fusion (docs/design.md §5): augmentation, the pairing tests and the
 // EKF update (fusion_steps.hpp).
 #include <algorithm>
 #include <cmath>

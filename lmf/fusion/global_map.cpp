@@ -339,7 +339,7 @@ std::vector<FusionReport> GlobalMap::fuse(const LocalMapSnapshot& snapshot) {
   std::vector<FusionReport> out;
   arrivals_.enqueue(snapshot);
   if (!arrivals_.any_joined() && config_.first_robot_defines_world) {
-    // DESIGN §5: the first robot defines the global frame.
+    // docs/design.md §5: the first robot defines the global frame.
     const EntityId L = state_.add(EntityKind::kFrame, Pose2());
     join(snapshot.robot_id, L, snapshot.seq, Sightings::kResolveAfterEachFusion, out);
   } else if (is_joined(snapshot.robot_id)) {
@@ -354,7 +354,7 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& snapshot)
   FusionContext f(state_, config_, robot_id, snapshot, arrivals_.frame_slot(robot_id, snapshot.seq));
   PhaseTimes& time = f.report.time;
   time.validate_s = clock.lap();
-  // Steps 1-4 of DESIGN §5, each timed on its own.
+  // Steps 1-4 of docs/design.md §5, each timed on its own.
   const std::pair<void (*)(FusionContext&), double PhaseTimes::*> pairing_steps[] = {
       {augment, &PhaseTimes::augment_s},                           // step 1
       {gate, &PhaseTimes::gate_s},                                 // step 2

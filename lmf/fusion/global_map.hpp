@@ -1,5 +1,5 @@
 // The global map and the fusion of robot local maps into it (paper §II.C, §III;
-// DESIGN §5–6).
+// docs/design.md §5–6).
 //
 // State (paper eq. 11), one joint covariance over all of it:
 //   * L_r: the local-map frame of every joined robot r (a frame, child of W):
@@ -10,7 +10,7 @@
 // W is the local frame of the first robot's first local map (or whatever the
 // caller's join_robot() poses say).
 //
-// fuse() applies every step of DESIGN §5 to one LocalMapSnapshot, one function
+// fuse() applies every step of docs/design.md §5 to one LocalMapSnapshot, one function
 // per step (fusion_steps.hpp): augmentation,
 // implicit measurements (eq. 12) with a geometric gate, an individual chi2 test
 // and an overlap test (several pairings per local segment allowed), incremental
@@ -209,7 +209,7 @@ struct FusionReport {
 
   // EKF update (eq. 9).
   int update_rows = 0;
-  int rows_dropped = 0;  // careful inversion (DESIGN §6)
+  int rows_dropped = 0;  // careful inversion (docs/design.md §6)
   int rows_kept = 0;     // k of the rank-k covariance update
   double update_distance2 = 0.0;
   std::int64_t update_dimension = 0;  // state size during the update (augmented)

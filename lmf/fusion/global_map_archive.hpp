@@ -1,6 +1,6 @@
 // An exact, versioned binary archive of a GlobalMap: everything that decides
 // its future fusions, so a map read back continues BIT-IDENTICALLY to the one
-// written (the fusion server's durable state, issue 6).
+// written (the fusion server's durable state).
 //
 // What is stored: the GlobalMapConfig; the GlobalState (entities with ids,
 // kinds, locations, lengths, parents and offsets, the next id, the capacity of

@@ -454,7 +454,7 @@ Eigen::MatrixXd GlobalState::Stacked::times_Ht(const Eigen::MatrixXd& X) const {
 }
 
 Eigen::MatrixXd GlobalState::touched_columns(const Stacked& st) const {
-  // DESIGN §5.3: P Hᵀ only needs the columns of the few entities H touches,
+  // docs/design.md §5.3: P Hᵀ only needs the columns of the few entities H touches,
   // read from the lower triangle (the row left of the diagonal, the column below it).
   Eigen::MatrixXd C(n_, st.H.cols());
   for (std::size_t a = 0; a < st.touched.size(); ++a) {
@@ -592,7 +592,7 @@ StateUpdateReport GlobalState::ekf_update(const std::vector<spmap::ImplicitMeasu
   Eigen::MatrixXd S = st.times_Ht(touched_rows(st, PHt).transpose()) + st.R;  // H (P Hᵀ)(touched, :) + R
   S = (0.5 * (S + S.transpose())).eval();
 
-  // DESIGN §6: full-pivot Gauss–Jordan; drop the rows whose pivots fall below
+  // docs/design.md §6: full-pivot Gauss–Jordan; drop the rows whose pivots fall below
   // the threshold (relative to the scale of S, never below the absolute floor).
   const Eigen::VectorXd row_scale = row_scales(st, P_tt);
   const double scale = std::max(row_scale.maxCoeff(), absolute_floor / relative_tolerance);
@@ -621,7 +621,7 @@ StateUpdateReport GlobalState::ekf_update(const std::vector<spmap::ImplicitMeasu
   const Eigen::VectorXd p_hat = -(PHt * Sinv_h);
 
   // P ← P − P Hᵀ S⁻¹ H P = P − U Uᵀ, U = P Hᵀ L⁻ᵀ with S_k = L Lᵀ: one
-  // symmetric rank-k update of the lower triangle (DESIGN §5.3).
+  // symmetric rank-k update of the lower triangle (docs/design.md §5.3).
   const Eigen::LLT<Eigen::MatrixXd> llt(S_k);
   if (llt.info() == Eigen::Success) {
     llt.matrixU().solveInPlace<Eigen::OnTheRight>(PHt);  // PHt ← PHt L⁻ᵀ
@@ -634,7 +634,7 @@ StateUpdateReport GlobalState::ekf_update(const std::vector<spmap::ImplicitMeasu
   }
   storage_.topLeftCorner(n_, n_).selfadjointView<Eigen::Lower>().rankUpdate(PHt, -1.0);
 
-  // Fold p̂ into every location and reset it to 0 (DESIGN §3): x̂ ← x̂ ⊕ Bᵀ p̂.
+  // Fold p̂ into every location and reset it to 0 (docs/design.md §3): x̂ ← x̂ ⊕ Bᵀ p̂.
   assert(p_hat.allFinite());
   for (Entity& e : entities_) {
     const double* p = p_hat.data() + e.offset;

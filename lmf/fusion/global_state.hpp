@@ -1,5 +1,5 @@
 // The global map's stochastic map (SPmap) storage, built for thousands of
-// entities (DESIGN §5.3, paper §II.C: O(m²) per fusion).
+// entities (docs/design.md §5.3, paper §II.C: O(m²) per fusion).
 //
 // Same model and entity type as lmf::spmap::StochasticMap (x_PE = x̂_PE ⊕ B_Eᵀ p_E,
 // p̂ = 0, P = Cov(p)), with a storage that keeps the fusion at the cost of one
@@ -41,7 +41,7 @@ using spmap::EntityKind;
 
 struct StateUpdateReport {
   int rows = 0;           // rows of the stacked measurement
-  int rows_dropped = 0;   // rows the careful inversion found redundant (DESIGN §6)
+  int rows_dropped = 0;   // rows the careful inversion found redundant (docs/design.md §6)
   int rows_kept = 0;      // k: the rank of the covariance update
   double distance2 = 0.0; // ĥᵀ S⁻¹ ĥ over the kept rows
   std::vector<EntityId> touched;  // entities with a Jacobian block (for health checks)
@@ -147,7 +147,7 @@ class GlobalState {
   }
 
   // One EKF update with all measurements (paper eq. 9) through the careful
-  // inversion (DESIGN §6): rows whose pivot is below
+  // inversion (docs/design.md §6): rows whose pivot is below
   // max(relative_tolerance · max(max diag S, reference_scale), absolute_floor)
   // are dropped (an all-dropped S changes nothing). p̂ is folded into the
   // locations and reset to 0.

@@ -1,5 +1,5 @@
 // Where each robot's local maps stand on their way into the global map
-// (DESIGN §5, "Robots join on the fly"): which robots have joined, the frames
+// (docs/design.md §5, "Robots join on the fly"): which robots have joined, the frames
 // L_r still needed, the local maps waiting, the ones fused, the frames of fused
 // local maps remembered for late sightings, and the sightings still pending.
 // It decides what to fuse next; GlobalMap fuses it.
@@ -69,7 +69,7 @@ class RobotArrivals {
   // Anchors the next older queued map when its successor's frame is known.
   std::optional<LocalMapSnapshot> take_next(int robot_id, GlobalState& state);
 
-  // --- For the fusion of local map `seq` of the robot (DESIGN §5 step 6).
+  // --- For the fusion of local map `seq` of the robot (docs/design.md §5 step 6).
   const FrameSlot& frame_slot(int robot_id, std::int64_t seq) const;
   // An older local map may still come, whose backward anchor is this map's frame.
   bool older_map_may_come(int robot_id, std::int64_t seq) const;

@@ -1,4 +1,4 @@
-// SE(2) locations and their composition (DESIGN §3; Smith, Self & Cheeseman).
+// SE(2) locations and their composition (docs/design.md §3; Smith, Self & Cheeseman).
 //
 // A location x_AB = (x, y, phi) is frame B seen from frame A: metres and radians,
 // phi wrapped to (-pi, pi]. Names carry their frames (x_WR: robot R in world W),

@@ -12,7 +12,7 @@
 namespace lmf {
 
 // NEES of an estimate x̂ with covariance P of its perturbation (x = x̂ ⊕ p, p in
-// the estimate's own frame, DESIGN §3) against the true pose: e = ⊖x̂ ⊕ x_true
+// the estimate's own frame, docs/design.md §3) against the true pose: e = ⊖x̂ ⊕ x_true
 // as (x, y, phi) with phi wrapped, NEES = eᵀ P⁻¹ e. nullopt when P is not
 // positive definite (e.g. at the local map's first scan, where P = 0).
 std::optional<double> pose_nees(const Pose2& x_hat, const Eigen::Matrix3d& P, const Pose2& x_true);

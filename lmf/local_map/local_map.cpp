@@ -82,7 +82,7 @@ void LocalMap::predict(const Pose2& u, const Eigen::Matrix3d& Q) {
   if (!finite(u)) throw std::invalid_argument("LocalMap::predict: non-finite odometry increment");
   if (!Q.allFinite()) throw std::invalid_argument("LocalMap::predict: non-finite increment covariance");
   const local_map::PredictionJacobians pj = local_map::prediction_jacobians(x_LR(), u);
-  // p_R ← J_R p_R transforms P_RR and every cross term P_R,x exactly (DESIGN §4.1) ...
+  // p_R ← J_R p_R transforms P_RR and every cross term P_R,x exactly (docs/design.md §4.1) ...
   map_.replace_perturbation(robot_, {{robot_, pj.J_R}});
   map_.mutable_entity(robot_).location = pj.x_LR;
   // ... and the increment's noise, independent of the state, adds J_u Q J_uᵀ to P_RR.
@@ -272,7 +272,7 @@ std::vector<LocalMap::Candidate> LocalMap::pair_observations(const std::vector<O
         ++report.pairings_rejected_individual;
         continue;
       }
-      // Individual compatibility, chi2(2) (paper eq. 8; DESIGN §4.3).
+      // Individual compatibility, chi2(2) (paper eq. 8; docs/design.md §4.3).
       spmap::ImplicitMeasurement m = local_map::pairing_measurement(map_, s.id, robot_, observations[i]);
       const spmap::CompatibilityTest test = spmap::individual_compatibility(
           map_, m, config_.pairing_alpha, config_.careful_inverse_tolerance);
@@ -341,7 +341,7 @@ std::vector<LocalMap::Pairing> LocalMap::joint_update(std::vector<Candidate> can
     compatible.push_back(std::move(measurements[k]));
     pairings.push_back(candidates[k].pairing);
   }
-  // Eq. (9) with the reduced innovation (DESIGN §6); folds p̂ into every location.
+  // Eq. (9) with the reduced innovation (docs/design.md §6); folds p̂ into every location.
   const spmap::UpdateReport update =
       spmap::ekf_update(map_, compatible, config_.careful_inverse_tolerance);
   report.update_rows = update.rows;
@@ -352,7 +352,7 @@ std::vector<LocalMap::Pairing> LocalMap::joint_update(std::vector<Candidate> can
 // ---------------------------------------------------------------------------
 // Step 6: geometric update. The EKF corrects only the lateral and angular
 // errors; the end points come from projecting each paired observation on its
-// (updated) map segment, moving the segment's frame with the dx rule (DESIGN §3).
+// (updated) map segment, moving the segment's frame with the dx rule (docs/design.md §3).
 
 void LocalMap::geometric_update(const std::vector<ObservedSegment>& observations,
                                 const std::vector<Pairing>& pairings, ScanReport& report) {
@@ -429,7 +429,7 @@ std::vector<EntityId> LocalMap::add_unpaired(const std::vector<ObservedSegment>&
 EntityId LocalMap::add_observation(const ObservedSegment& observation) {
   const local_map::AdditionJacobians aj = local_map::addition_jacobians(x_LR(), observation.location);
   const EntityId id = map_.add(EntityKind::kSegment, aj.x_LS, std::nullopt, observation.length_m);
-  // p_S = J_R p_R + J_E p_E (DESIGN §4.8): the robot part carries the
+  // p_S = J_R p_R + J_E p_E (docs/design.md §4.8): the robot part carries the
   // correlations, the observation noise is independent of the state.
   map_.replace_perturbation(id, {{robot_, Eigen::MatrixXd(aj.J_R)}});
   const Eigen::Index off = map_.entity(id).offset;
@@ -439,7 +439,7 @@ EntityId LocalMap::add_observation(const ObservedSegment& observation) {
 }
 
 // ---------------------------------------------------------------------------
-// Step 9: perfect angular constraints (paper §III.A; DESIGN §4.9) between each
+// Step 9: perfect angular constraints (paper §III.A; docs/design.md §4.9) between each
 // new segment and the nearly parallel / perpendicular others, Mahalanobis-gated
 // (chi2(1)), jointly checked, and applied in one update through the careful
 // inversion (they make P singular).

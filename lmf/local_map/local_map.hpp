@@ -1,8 +1,8 @@
-// The robot's EKF local map (paper §II.B; DESIGN §4): the robot R and the wall
+// The robot's EKF local map (paper §II.B; docs/design.md §4): the robot R and the wall
 // segments it has seen, all relative to the local frame L (the robot's pose when
 // the map began), with their joint covariance.
 //
-// One call of update() runs the ten steps of DESIGN §4 for one scan:
+// One call of update() runs the ten steps of docs/design.md §4 for one scan:
 //   1 predict with odometry, (2 extraction: done by the caller or process_scan),
 //   3 pair observations with map segments (individual chi2 + extent overlap),
 //   4 incremental joint compatibility and one EKF update with all compatible

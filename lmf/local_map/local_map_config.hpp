@@ -1,4 +1,4 @@
-// Configuration of the robot local map (DESIGN §4; paper §II.B), with units and
+// Configuration of the robot local map (docs/design.md §4; paper §II.B), with units and
 // documented defaults. validate() throws std::invalid_argument naming the field.
 #pragma once
 
@@ -62,7 +62,7 @@ struct LocalMapConfig {
   std::size_t joint_compatibility_restarts = 3;
 
   // --- Step 5 (and every inversion of an innovation covariance): careful
-  // inversion stops when the best pivot < tolerance · largest pivot (DESIGN §6).
+  // inversion stops when the best pivot < tolerance · largest pivot (docs/design.md §6).
   double careful_inverse_tolerance = 1e-9;
 
   // --- Step 7: two map segments that matched the same observation are fused

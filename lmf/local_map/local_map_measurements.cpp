@@ -27,7 +27,7 @@ PredictionJacobians prediction_jacobians(const Pose2& x_LR, const Pose2& u) {
   PredictionJacobians out;
   out.x_LR = compose(x_LR, u);
   // p_R' = ⊖x̂_LR' ⊕ (x̂_LR ⊕ p_R) ⊕ (û ⊕ p_u): a chain whose value is the identity
-  // at p = 0, so its Jacobians are those of the new perturbation (DESIGN §4.1).
+  // at p = 0, so its Jacobians are those of the new perturbation (docs/design.md §4.1).
   const std::vector<ChainLink> links = {
       {inverse(out.x_LR), EntityKind::kFrame, false, std::nullopt},
       {x_LR, EntityKind::kRobot, false, std::nullopt},
@@ -105,7 +105,7 @@ Pose2 observation_in_segment(const spmap::StochasticMap& map, spmap::EntityId se
 AdditionJacobians addition_jacobians(const Pose2& x_LR, const Pose2& x_RE) {
   AdditionJacobians out;
   out.x_LS = compose(x_LR, x_RE);
-  // p_S = B_S(⊖x̂_LS ⊕ (x̂_LR ⊕ p_R) ⊕ (x_RE ⊕ B_Eᵀ p_E)), identity at p = 0 (DESIGN §4.8).
+  // p_S = B_S(⊖x̂_LS ⊕ (x̂_LR ⊕ p_R) ⊕ (x_RE ⊕ B_Eᵀ p_E)), identity at p = 0 (docs/design.md §4.8).
   const std::vector<ChainLink> links = {
       {inverse(out.x_LS), EntityKind::kFrame, false, std::nullopt},
       {x_LR, EntityKind::kRobot, false, std::nullopt},
@@ -121,7 +121,7 @@ spmap::ImplicitMeasurement angular_constraint(const spmap::StochasticMap& map, s
                                               spmap::EntityId b, double target_rad) {
   require_kind(map, a, EntityKind::kSegment, "angular_constraint");
   require_kind(map, b, EntityKind::kSegment, "angular_constraint");
-  // DESIGN §4.9: a perfect (R = 0) constraint on the relative angle only.
+  // docs/design.md §4.9: a perfect (R = 0) constraint on the relative angle only.
   const std::vector<ChainLink> links = spmap::chain_between(map, a, b);
   Eigen::VectorXd target(1);
   target(0) = target_rad;

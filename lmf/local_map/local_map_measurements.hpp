@@ -1,4 +1,4 @@
-// The equations of the robot local map (DESIGN §4; paper §II.B), as small pure
+// The equations of the robot local map (docs/design.md §4; paper §II.B), as small pure
 // functions so each can be tested against finite differences.
 //
 // Frames: L the local map's frame (the root of the StochasticMap), R the robot,
@@ -33,7 +33,7 @@ OdometryErrorModel odometry_prior(const LocalMapConfig& config);
 Eigen::Matrix3d odometry_noise(const Pose2& u, const LocalMapConfig& config);
 
 // Step 3, the implicit measurement of observation E on map segment S
-// (paper eqs. 5–7 in the local frame, DESIGN §4.3):
+// (paper eqs. 5–7 in the local frame, docs/design.md §4.3):
 //   h = B_S (⊖x_LS ⊕ x_LR ⊕ x_RE) = 0,
 // rows (lateral, angular) of E's frame in S's frame; H has blocks for S and R;
 // R = J_E Cov(p_E) J_Eᵀ. Throws std::invalid_argument if the ids are not a
@@ -84,7 +84,7 @@ struct AdditionJacobians {
 };
 AdditionJacobians addition_jacobians(const Pose2& x_LR, const Pose2& x_RE);
 
-// Step 9, the perfect angular constraint between segments a and b (DESIGN §4.9):
+// Step 9, the perfect angular constraint between segments a and b (docs/design.md §4.9):
 //   h = angle(⊖x_La ⊕ x_Lb) - target_rad = 0 (wrapped), R = 0,
 // target_rad one of 0, ±pi/2, pi (parallel, perpendicular, anti-parallel).
 spmap::ImplicitMeasurement angular_constraint(const spmap::StochasticMap& map, spmap::EntityId a,

@@ -1,5 +1,5 @@
 // The robot's odometry error model, learned online from the disagreement
-// between the odometry and the scan matcher (beyond the paper; DESIGN §10).
+// between the odometry and the scan matcher (beyond the paper; docs/design.md §10).
 //
 // The paper predicts with a known odometry noise proportional to the motion. A
 // real robot's wheel odometry has systematic errors (wheel radius and wheelbase

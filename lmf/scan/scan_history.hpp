@@ -1,4 +1,4 @@
-// The recent local history the scan matcher matches against (DESIGN §10): the
+// The recent local history the scan matcher matches against (docs/design.md §10): the
 // last few scans, each with its pose relative to the newest one, x_NK. Each
 // added scan N' comes with its increment x_NN' from the previous newest N (the
 // match, or the odometry), and every stored pose is re-expressed exactly,

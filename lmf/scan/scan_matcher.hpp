@@ -1,5 +1,5 @@
 // Scan matching that estimates one odometry increment (an addition to the
-// paper's local map, DESIGN §4.1 step 1 and §10): the current scan B against a
+// paper's local map, docs/design.md §4.1 and §10): the current scan B against a
 // reference A, the union of the last few scans expressed in the newest one's
 // frame (scan_history.hpp), in two stages:
 //  1. a correlative search (correlative_search.hpp) over a window of poses

@@ -52,7 +52,7 @@ LineFit fit_line(const std::vector<ScanPoint>& points, Range r) {
   const double theta = 0.5 * std::atan2(2.0 * sxy, sxx - syy);
   fit.direction = {std::cos(theta), std::sin(theta)};
   fit.normal = {-fit.direction.y(), fit.direction.x()};
-  // DESIGN §3: a fixed side. The sensor (origin) must lie on the left (+normal).
+  // docs/design.md §3: a fixed side. The sensor (origin) must lie on the left (+normal).
   // A line through the sensor cannot be seen; fall back to the beam order then.
   const double sensor_side = -fit.normal.dot(fit.centroid);
   const bool flip = std::abs(sensor_side) > 1e-9
@@ -220,7 +220,7 @@ void refine_boundaries(const std::vector<ScanPoint>& points, double max_distance
 
 // Step 5: the segment of one piece, or nothing when it fails the filters of step 6.
 //
-// Covariance of p_E = (lateral, angular) (DESIGN §3, §4.2). Write each point in
+// Covariance of p_E = (lateral, angular) (docs/design.md §3, §4.2). Write each point in
 // the fitted frame (origin at the centroid c, axis d, normal n): s_i = d·(p_i - c),
 // e_i = n·(p_i - c). A small error of the line, offset a at the centroid and
 // angle b, moves the residuals by e_i ≈ a + b s_i, and to first order the TLS fit
@@ -237,7 +237,7 @@ void refine_boundaries(const std::vector<ScanPoint>& points, double max_distance
 // variances; tests/scan checks the NEES.)
 // The segment frame sits at the midpoint m of the end points, dx = s_m along the
 // axis from the centroid; the lateral error there is a + b dx, so
-// P = J Σ_ab Jᵀ with J = [[1, dx], [0, 1]] (the dx rule of DESIGN §3).
+// P = J Σ_ab Jᵀ with J = [[1, dx], [0, 1]] (the dx rule of docs/design.md §3).
 std::optional<ExtractedSegment> make_segment(const std::vector<ScanPoint>& points, Range r,
                                              const ExtractionConfig& config) {
   if (r.size() < 2 || static_cast<int>(r.size()) < config.min_points) return std::nullopt;

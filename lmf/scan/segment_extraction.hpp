@@ -1,5 +1,5 @@
 // Line segments from one laser scan: split and merge followed by a least-squares
-// fit (paper §IV; DESIGN §4.2).
+// fit (paper §IV; docs/design.md §4.2).
 //
 // Steps, all in the sensor (= robot) frame R:
 //  1. keep readings in [min_range_m, min(max_range_m, scan.max_range_m - no_return_margin_m)];

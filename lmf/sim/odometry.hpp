@@ -8,10 +8,10 @@
 //     n_phi   ~ N(0, (rotation_fraction * |dphi| + heading_drift_rad_per_m * d)^2),
 //   all independent, independent between increments (datasets/README.md: 8 %, 8 %, 0.01 rad/m;
 //   the paper: odometry error proportional to the motion, 6-8 %). A filter predicting with the
-//   same increments should use exactly this covariance (DESIGN §4 step 1).
+//   same increments should use exactly this covariance (docs/design.md §4 step 1).
 //
 // * Real (RealOdometry): what the wheel odometry of a real differential-drive robot does
-//   (DESIGN §9), which no filter is told: systematic errors fixed per robot for the whole
+//   (docs/design.md §9), which no filter is told: systematic errors fixed per robot for the whole
 //   mission, lateral slip, heading noise that does not vanish when driving straight, and
 //   occasional glitches. See RealOdometryConfig for the model and the reasoning behind each
 //   default.

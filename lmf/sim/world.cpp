@@ -112,7 +112,7 @@ class Builder {
     for (const auto& b : tables_) world.tables.push_back(to_box(b));
     world.rooms = rooms_;
     world.loop = {{0.0, 0.0}, {to_m(lx_), 0.0}, {to_m(lx_), to_m(ly_)}, {0.0, to_m(ly_)}};
-    world.loop_length_m = 2.0 * (to_m(lx_) + to_m(ly_));  // DESIGN §9: a loop of 100 m or more
+    world.loop_length_m = 2.0 * (to_m(lx_) + to_m(ly_));  // docs/design.md §9: a loop of 100 m or more
 
     const double pi = std::numbers::pi;
     world.start_spots = {

@@ -29,7 +29,7 @@ CarefulInverse careful_inverse(const Eigen::MatrixXd& S, double relative_toleran
   // Symmetric Gauss–Jordan (the "sweep" form): after sweeping the pivot set K,
   // A(K,K) = -S(K,K)⁻¹ and A(R,R) = S(R,R) - S(R,K) S(K,K)⁻¹ S(K,R), so the
   // remaining diagonal holds the Schur-complement pivots the next step chooses
-  // from (paper §III.B, DESIGN §6). Working on (S + Sᵀ)/2 keeps both triangles
+  // from (paper §III.B, docs/design.md §6). Working on (S + Sᵀ)/2 keeps both triangles
   // consistent even if the caller's S is asymmetric by rounding.
   Eigen::MatrixXd A = 0.5 * (S + S.transpose());
   const double largest_initial = A.diagonal().cwiseAbs().maxCoeff();

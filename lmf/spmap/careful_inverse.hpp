@@ -1,5 +1,5 @@
 // Careful inversion of a symmetric positive semidefinite matrix (paper §III.B,
-// DESIGN §6): Gauss–Jordan elimination with full (symmetric, diagonal) pivoting
+// docs/design.md §6): Gauss–Jordan elimination with full (symmetric, diagonal) pivoting
 // that stops when the best remaining pivot falls below `relative_tolerance`
 // times the largest initial diagonal. The rows whose pivots were used carry the
 // independent information; the others repeat what those rows already say.

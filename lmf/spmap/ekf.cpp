@@ -133,7 +133,7 @@ ImplicitMeasurement measurement_from_chain(const std::vector<ChainLink>& links, 
   for (Eigen::Index i = 0; i < r; ++i) {
     m.h(i) = value(rows[static_cast<std::size_t>(i)]);
     if (target.size() != 0) m.h(i) -= target(i);
-    // DESIGN §3: angle innovations are wrapped, never a 2pi jump.
+    // docs/design.md §3: angle innovations are wrapped, never a 2pi jump.
     if (rows[static_cast<std::size_t>(i)] == 2) m.h(i) = wrap_angle(m.h(i));
   }
   m.R = Eigen::MatrixXd::Zero(r, r);
@@ -175,7 +175,7 @@ Eigen::MatrixXd gather_PHt(const StochasticMap& map, const std::vector<ImplicitM
   for (const ImplicitMeasurement& m : measurements) {
     validate(map, m, "gather_PHt");
     const Eigen::Index r = m.h.size();
-    // DESIGN §5.3: P Hᵀ is a gather over the few columns H touches.
+    // docs/design.md §5.3: P Hᵀ is a gather over the few columns H touches.
     for (const JacobianBlock& b : m.blocks) {
       add_columns_times_Jt(PHt.middleCols(col, r), P.middleCols(map.entity(b.entity).offset, b.J.cols()), b.J);
     }
@@ -273,7 +273,7 @@ CompatibilityTest individual_compatibility(const StochasticMap& map, const Impli
   }
   S = 0.5 * (S + S.transpose()).eval();
   const double scale = uncorrelated.size() > 0 ? std::max(0.0, uncorrelated.maxCoeff()) : 0.0;
-  // Eq. (8): D² = ĥᵀ S⁻¹ ĥ with the careful inversion (DESIGN §6).
+  // Eq. (8): D² = ĥᵀ S⁻¹ ĥ with the careful inversion (docs/design.md §6).
   return compatibility(m.h, S, alpha, relative_tolerance, scale);
 }
 
@@ -308,7 +308,7 @@ std::vector<std::size_t> incremental_joint_compatibility(const StochasticMap& ma
       kept.push_back(c);
       continue;
     }
-    // P H_cᵀ: a gather over the columns H_c touches (DESIGN §5.3), computed
+    // P H_cᵀ: a gather over the columns H_c touches (docs/design.md §5.3), computed
     // once per candidate and kept in place if it is accepted.
     auto PHt_c = PHt.middleCols(a, r);
     PHt_c.setZero();
@@ -327,7 +327,7 @@ std::vector<std::size_t> incremental_joint_compatibility(const StochasticMap& ma
     S.block(a, a, r, r) = S_cc;
     h.segment(a, r) = m.h;
 
-    // The careful inversion of the joint S (DESIGN §6) judges pivots against
+    // The careful inversion of the joint S (docs/design.md §6) judges pivots against
     // this threshold (careful_inverse.hpp).
     const double scale = std::max(scale_acc, reference_scale_of(map, m));
     const double diagonal = std::max(diagonal_acc, S_cc.diagonal().cwiseAbs().maxCoeff());
@@ -420,7 +420,7 @@ UpdateReport ekf_update(StochasticMap& map, const std::vector<ImplicitMeasuremen
   const Eigen::MatrixXd S = innovation_covariance(map, measurements, PHt);
   const Eigen::VectorXd h = stacked_value(measurements);
 
-  // DESIGN §6: drop the rows whose information the others already carry.
+  // docs/design.md §6: drop the rows whose information the others already carry.
   const CarefulInverse ci =
       careful_inverse(S, relative_tolerance, innovation_reference_scale(map, measurements));
   report.rows_dropped = static_cast<int>(ci.dropped.size());
@@ -438,13 +438,13 @@ UpdateReport ekf_update(StochasticMap& map, const std::vector<ImplicitMeasuremen
   const Eigen::MatrixXd W = PHt_k * ci.inverse;
   const Eigen::VectorXd p_hat = -W * h_k;
 
-  // P ← P - W (P Hᵀ)ᵀ: a rank-k update of the lower triangle only (DESIGN §5.3),
+  // P ← P - W (P Hᵀ)ᵀ: a rank-k update of the lower triangle only (docs/design.md §5.3),
   // then mirrored so both triangles stay valid.
   StochasticMap::MutableCovarianceView P = map.mutable_covariance();
   P.triangularView<Eigen::Lower>() -= W * PHt_k.transpose();
   mirror_lower_to_upper(P);
 
-  // Fold p̂ into every location and reset it to 0 (DESIGN §3).
+  // Fold p̂ into every location and reset it to 0 (docs/design.md §3).
   for (const Entity& e : map.entities()) {
     const Eigen::Index d = dof(e.kind);
     const Eigen::VectorXd p_E = p_hat.segment(e.offset, d);

@@ -1,6 +1,6 @@
 // The EKF machinery shared by the local map and the global map (paper eqs. 7–9):
 // sparse implicit measurements, individual and joint compatibility, and the
-// update through the careful inversion (DESIGN §6).
+// update through the careful inversion (docs/design.md §6).
 //
 // Notation, defined once here: P state covariance; an implicit measurement h(p)
 // with value ĥ = h(0) and Jacobian H = ∂h/∂p (sparse: a few entity blocks);
@@ -57,7 +57,7 @@ Eigen::VectorXd stacked_value(const std::vector<ImplicitMeasurement>& measuremen
 
 // The largest diagonal of S as if the entities were uncorrelated,
 // max_i (Σ_blocks J P_EE Jᵀ + R)_ii: the scale against which the careful
-// inversion judges a pivot small (DESIGN §6). A relation the state already
+// inversion judges a pivot small (docs/design.md §6). A relation the state already
 // knows (a repeated perfect constraint) has S ≈ 0 up to rounding although this
 // scale is not small, so its rows are dropped instead of inverting noise.
 // Every function below passes it to careful_inverse.

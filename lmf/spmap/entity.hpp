@@ -1,4 +1,4 @@
-// SPmap entities (DESIGN §3; paper eq. 1): every entity E has an estimated location
+// SPmap entities (docs/design.md §3; paper eq. 1): every entity E has an estimated location
 // x̂_PE relative to its parent frame P and a perturbation p_E in its own frame:
 //   x_PE = x̂_PE ⊕ B_Eᵀ p_E,  p̂_E = 0.
 // Robots and frames bind all three components (B = I3); a segment binds only its
@@ -43,7 +43,7 @@ Eigen::MatrixXd binding(EntityKind kind);
 Pose2 fold(const Pose2& location, EntityKind kind, const Eigen::VectorXd& p);
 
 // Moving a segment's frame by dx (m) along its own x axis changes the meaning of
-// its lateral error: p' = T p with T = [[1, dx], [0, 1]] (DESIGN §3).
+// its lateral error: p' = T p with T = [[1, dx], [0, 1]] (docs/design.md §3).
 Eigen::Matrix2d segment_frame_shift(double dx_m);
 
 }  // namespace lmf::spmap

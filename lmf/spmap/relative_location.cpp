@@ -25,7 +25,7 @@ ChainValue evaluate_chain(const std::vector<ChainLink>& links) {
   for (std::size_t l = 0; l < k; ++l) {
     const ChainLink& link = links[l];
     // ∂(x̂ ⊕ Bᵀp)/∂p at p = 0 (paper eq. 1), then through ⊖ when inverted;
-    // B selects (y, phi) for a segment, all of (x, y, phi) otherwise (DESIGN §3).
+    // B selects (y, phi) for a segment, all of (x, y, phi) otherwise (docs/design.md §3).
     Eigen::Matrix3d J_link = J2compose(link.location, zero);
     if (link.inverted) J_link = (Jinverse(link.location) * J_link).eval();
     // value = prefix ⊕ (v_l ⊕ suffix): chain rule through both compositions

@@ -1,6 +1,6 @@
 // Relative locations between entities and their Jacobians with respect to every
 // perturbation involved: the building block of the implicit measurement
-// equations h = B(⊖x_AS ⊕ ... ⊕ x_BE) (paper eqs. 5–7, 12; DESIGN §4.3, §5.2).
+// equations h = B(⊖x_AS ⊕ ... ⊕ x_BE) (paper eqs. 5–7, 12; docs/design.md §4.3, §5.2).
 #pragma once
 
 #include <concepts>

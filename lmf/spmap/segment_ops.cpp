@@ -48,7 +48,7 @@ void extend_segment(StochasticMap& map, EntityId s, const Interval& interval_in_
   Entity& e = map.mutable_entity(s);
   e.location = compose(e.location, Pose2(dx, 0.0, 0.0));
   e.length_m = new_max - new_min;
-  // DESIGN §3: the frame moved by dx along x, so p' = [[1, dx], [0, 1]] p.
+  // docs/design.md §3: the frame moved by dx along x, so p' = [[1, dx], [0, 1]] p.
   map.replace_perturbation(s, {{s, segment_frame_shift(dx)}});
 }
 

@@ -1,6 +1,6 @@
 // Geometric operations on segment entities that the EKF does not handle: extent
 // overlap, endpoint (geometric) update with the frame-shift rule, and fusion of
-// two map segments that are the same wall (DESIGN §3, §4.6–4.7, §5.4).
+// two map segments that are the same wall (docs/design.md §3, §4.6–4.7, §5.4).
 #pragma once
 
 #include <Eigen/Core>

@@ -1,6 +1,6 @@
 # shellcheck shell=bash
 # Private network namespaces for running lmf processes over LCM multicast on
-# one machine (DESIGN §7) without a single packet reaching a real network.
+# one machine (docs/design.md §7) without a single packet reaching a real network.
 #
 # Source this file, then:
 #   lmf_netns_supported            # exit status 0 if a namespace can be made here

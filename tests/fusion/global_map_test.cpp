@@ -1,4 +1,4 @@
-// GlobalMap: the fusion steps of DESIGN §5 on constructed local maps.
+// GlobalMap: the fusion steps of docs/design.md §5 on constructed local maps.
 #include "lmf/fusion/global_map.hpp"
 
 #include <cmath>
@@ -64,7 +64,7 @@ TEST(GlobalMapTest, FirstLocalMapCreatesASubmapAndMovesTheFrameByTheRobotPose) {
   EXPECT_EQ(r.size_after.state_dimension, 3 + 3 + 8);
   for (const SegmentView& seg : map.segments()) EXPECT_EQ(seg.submap, *r.new_submap);
 
-  // DESIGN §5.6: L_r <- L_r ⊕ x_R; L was exact, so its covariance is the
+  // docs/design.md §5.6: L_r <- L_r ⊕ x_R; L was exact, so its covariance is the
   // robot's, as the fusion takes it: scaled by local_map_covariance_scale.
   const std::optional<CorrectedFrame> f = map.corrected_frame(0);
   ASSERT_TRUE(f.has_value());
@@ -113,7 +113,7 @@ TEST(GlobalMapTest, ReobservedWallsArePairedAndTheMapDoesNotGrow) {
 
 // The whole pipeline (augmentation, gather/rank-k update on the lower
 // triangle, frame advance, batch removal) against the textbook dense
-// computation of DESIGN §5 on the augmented state.
+// computation of docs/design.md §5 on the augmented state.
 TEST(GlobalMapTest, FusionEqualsTheDenseAugmentedEkf) {
   GlobalMap map(checked_config());
   const std::vector<Wall> walls = synthetic::room(1.0, 0.5, 7.0, 5.0);
@@ -246,7 +246,7 @@ TEST(GlobalMapTest, GlobalSegmentsMatchingOneLocalSegmentAreFused) {
 }
 
 // A snapshot of a robot and two walls whose covariance makes φ1 − φ2 exact (a
-// perfect shape constraint, DESIGN §4.9): both angles follow the robot heading
+// perfect shape constraint, docs/design.md §4.9): both angles follow the robot heading
 // and one shared angle error.
 LocalMapSnapshot with_exact_relative_angle(const LocalMapSnapshot& base) {
   LocalMapSnapshot s = base;
@@ -263,7 +263,7 @@ LocalMapSnapshot with_exact_relative_angle(const LocalMapSnapshot& base) {
 }
 
 // Two parallel walls whose relative angle is perfectly known in the local map
-// (a perfect shape constraint, DESIGN §4.9) and therefore also in the global
+// (a perfect shape constraint, docs/design.md §4.9) and therefore also in the global
 // map built from it: two pairings repeat that relation, S is singular, and the
 // careful inversion must drop one row (paper §III.B).
 TEST(GlobalMapTest, CarefulInversionDropsTheRowOfARepeatedPerfectRelation) {

@@ -237,7 +237,7 @@ Corpus make_corpus() {
   const auto& maps0 = shipped.at(0);
   const auto& maps1 = shipped.at(1);
   if (maps0.size() < 2 || maps1.size() < 2) fail("fuzz corpus: the simulated mission shipped too few local maps");
-  c.prepared_map.join_robot(0, Pose2());  // L = W (DESIGN §5)
+  c.prepared_map.join_robot(0, Pose2());  // L = W (docs/design.md §5)
   std::int64_t fusions = 0;
   for (std::size_t i = 0; i + 1 < maps0.size(); ++i) fusions += static_cast<std::int64_t>(c.prepared_map.fuse(maps0[i]).size());
   const Pose2 x_WL1 = between(mission.robots[0].true_poses.front(), mission.robots[1].true_poses.front());

@@ -1,4 +1,4 @@
-// What the fuzz targets of tests/fuzz share (issue 6, hostile input).
+// What the fuzz targets of tests/fuzz share.
 //
 // Why tests/fuzz and not a top-level fuzz/: the targets are tests. The
 // standalone driver (lmf-fuzz) is built with the tests and its short runs are

@@ -1,4 +1,4 @@
-// Hostile input through the real lmf-server node over memq:// (issue 6 part 3):
+// Hostile input through the real lmf-server node over memq://:
 // every kind of bad local map and sighting the issue lists (oversized,
 // NaN/inf, wrong array sizes, indefinite covariances, bad angles, unknown
 // robots, sequence numbers from the past, values the GlobalMap itself

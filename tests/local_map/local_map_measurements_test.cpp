@@ -1,4 +1,4 @@
-// The local map's equations against finite differences (DESIGN §3: every
+// The local map's equations against finite differences (docs/design.md §3: every
 // analytic Jacobian is tested numerically), including angles near ±pi.
 #include "lmf/local_map/local_map_measurements.hpp"
 

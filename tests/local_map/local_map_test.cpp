@@ -1,4 +1,4 @@
-// The local map's steps on constructed cases (DESIGN §4): pairing, the other
+// The local map's steps on constructed cases (docs/design.md §4): pairing, the other
 // face, fusion, perpendicular constraints, the frame shift, prediction, the ship
 // policy and snapshot/reset.
 #include "lmf/local_map/local_map.hpp"

@@ -1,4 +1,4 @@
-// Agent restart (issue 6: kill and restart one agent, the mission completes and
+// Agent restart (kill and restart one agent, the mission completes and
 // nothing the server had acknowledged is lost), over memq:// in one process:
 //  * the persisted state file: round trip, and every single-byte corruption,
 //    truncation or foreign content is detected;

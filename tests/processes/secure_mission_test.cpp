@@ -1,4 +1,4 @@
-// Authenticated messages end to end (issue 6, part 4), in one process over
+// Authenticated messages end to end, in one process over
 // memq://: the real lmf-server node, two lmf-agents and lmf-player (lockstep)
 // each sign and verify with their own keys file (as lmf-keygen writes them),
 // each on its own Bus endpoint of one shared memq:// "network". While the

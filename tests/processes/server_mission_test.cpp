@@ -1,7 +1,7 @@
 // The whole system in one process over memq://: lmf-player (lockstep), two
 // lmf-agents and the REAL lmf-server node (fusion in its worker thread) replay
 // a short simulated mission; the final global map, corrected frames and
-// trajectories must equal lmf-offline's on the same inputs (DESIGN §7: FIFO
+// trajectories must equal lmf-offline's on the same inputs (docs/design.md §7: FIFO
 // fusion in arrival order), and every local map is acked FUSED exactly once.
 // The local maps and sightings of that run, captured as lcm-logger would, and
 // replayed into a fresh server (lmf-server --replay) give the same map again.

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Kill and restart one agent (issue 6): a short 2-robot simulated mission run as
+# Kill and restart one agent: a short 2-robot simulated mission run as
 # separate processes (lmf-server, two lmf-agent, lmf-player --lockstep) inside a
 # private network namespace. Robot 1's agent runs with --state; it is made to
 # stall after a scan past the middle of its log (--test-stall-after-scan, so the

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Crash test of lmf-server's durable state (--state DIR, issue 6): a 2-robot
+# Crash test of lmf-server's durable state (--state DIR): a 2-robot
 # simulated mission (lmf-server, two lmf-agent, lmf-player --lockstep) inside a
 # private network namespace, run three times:
 #   plain     uninterrupted, no --state: the reference;
