@@ -65,7 +65,7 @@ EntityId LocalMap::add_segment_for_test(const Pose2& x_LS, double length_m, cons
   const EntityId id = map_.add(EntityKind::kSegment, x_LS, std::nullopt, length_m);
   const Eigen::Index off = map_.entity(id).offset;
   map_.mutable_covariance().block<2, 2>(off, off) = 0.5 * (covariance + covariance.transpose());
-  group_parent_[id] = id;
+  groups_.find(id);  // a group of its own
   return id;
 }
 
@@ -393,7 +393,7 @@ void LocalMap::fuse_multiple_matches(const std::vector<Pairing>& pairings, ScanR
       if (spmap::fuse_segments(map_, keep, live[k], config_.fusion_alpha)) {
         fused_into[live[k]] = keep;
         // The fusion's perfect constraint fixes their relative angle too.
-        join_groups(keep, live[k]);
+        groups_.unite(keep, live[k]);
         ++report.segments_fused;
       } else {
         ++report.fusions_rejected;
@@ -434,7 +434,7 @@ EntityId LocalMap::add_observation(const ObservedSegment& observation) {
   map_.replace_perturbation(id, {{robot_, Eigen::MatrixXd(aj.J_R)}});
   const Eigen::Index off = map_.entity(id).offset;
   map_.mutable_covariance().block<2, 2>(off, off) += aj.J_E * observation.covariance * aj.J_E.transpose();
-  group_parent_[id] = id;
+  groups_.find(id);  // a group of its own
   return id;
 }
 
@@ -454,7 +454,7 @@ void LocalMap::apply_constraints(const std::vector<EntityId>& added, ScanReport&
   std::set<EntityId> groups_seen;
   for (const spmap::Entity& e : map_.entities()) {
     if (e.kind != EntityKind::kSegment) continue;
-    if (groups_seen.insert(group_of(e.id)).second) representatives.push_back(e.id);
+    if (groups_seen.insert(groups_.find(e.id)).second) representatives.push_back(e.id);
   }
 
   struct ConstraintCandidate {
@@ -470,7 +470,7 @@ void LocalMap::apply_constraints(const std::vector<EntityId>& added, ScanReport&
     // order" visits the old groups and the earlier new segments: each pair once.
     for (EntityId r : representatives) {
       if (r >= n) break;
-      if (group_of(r) == group_of(n)) continue;
+      if (groups_.find(r) == groups_.find(n)) continue;
       const double relative = wrap_angle(phi_n - map_.root_location(r).phi);
       const double target = local_map::nearest_right_angle(relative);
       if (std::abs(wrap_angle(relative - target)) > config_.constraint_max_angle_rad) continue;
@@ -504,30 +504,7 @@ void LocalMap::apply_constraints(const std::vector<EntityId>& added, ScanReport&
   const spmap::UpdateReport update = spmap::ekf_update(map_, applied, config_.careful_inverse_tolerance);
   report.constraints_applied = update.rows;
   report.constraint_rows_dropped = update.rows_dropped;
-  for (std::size_t k : kept) join_groups(candidates[k].a, candidates[k].b);
-}
-
-EntityId LocalMap::group_of(EntityId id) {
-  auto it = group_parent_.find(id);
-  if (it == group_parent_.end()) {
-    group_parent_.emplace(id, id);
-    return id;
-  }
-  EntityId root = id;
-  while (group_parent_.at(root) != root) root = group_parent_.at(root);
-  // Path compression.
-  while (group_parent_.at(id) != root) {
-    const EntityId next = group_parent_.at(id);
-    group_parent_[id] = root;
-    id = next;
-  }
-  return root;
-}
-
-void LocalMap::join_groups(EntityId a, EntityId b) {
-  const EntityId ra = group_of(a);
-  const EntityId rb = group_of(b);
-  if (ra != rb) group_parent_[std::max(ra, rb)] = std::min(ra, rb);
+  for (std::size_t k : kept) groups_.unite(candidates[k].a, candidates[k].b);
 }
 
 spmap::CovarianceHealth LocalMap::check_covariance() const {
@@ -576,7 +553,7 @@ void LocalMap::reset() {
   const bool had_scans = first_utime_.has_value();
   map_.clear();
   robot_ = map_.add(EntityKind::kRobot, Pose2());
-  group_parent_.clear();
+  groups_ = {};
   scan_poses_.clear();
   span_m_ = 0.0;
   ++seq_;

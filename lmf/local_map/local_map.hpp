@@ -36,6 +36,7 @@
 
 #include <Eigen/Core>
 
+#include "lmf/common/union_find.hpp"
 #include "lmf/geometry/pose2.hpp"
 #include "lmf/local_map/local_map_config.hpp"
 #include "lmf/local_map/local_map_snapshot.hpp"
@@ -204,12 +205,6 @@ class LocalMap {
   int remove_seen_through(const LaserScan& scan);
   spmap::EntityId add_observation(const ObservedSegment& observation);
 
-  // Groups of segments whose relative angles are perfectly known (joined by
-  // applied constraints or fusions): one member of a group stands for all in
-  // step 9, because a constraint to another member would repeat the same row.
-  spmap::EntityId group_of(spmap::EntityId id);
-  void join_groups(spmap::EntityId a, spmap::EntityId b);
-
   LocalMapConfig config_;
   double pairing_threshold_ = 0.0;  // chi2inv(1 - pairing_alpha, 2)
   int robot_id_;
@@ -226,7 +221,10 @@ class LocalMap {
   double span_m_ = 0.0;
   std::size_t scans_ = 0;  // scans folded in since construction
   std::vector<ScanPose> scan_poses_;
-  std::unordered_map<spmap::EntityId, spmap::EntityId> group_parent_;
+  // Groups of segments whose relative angles are perfectly known (joined by
+  // applied constraints or fusions): one member of a group stands for all in
+  // step 9, because a constraint to another member would repeat the same row.
+  UnionFind<spmap::EntityId> groups_;
 };
 
 }  // namespace lmf

@@ -16,8 +16,6 @@
 namespace lmf {
 namespace {
 
-bool finite(const Pose2& x) { return std::isfinite(x.x) && std::isfinite(x.y) && std::isfinite(x.phi); }
-
 // The regressors of the three variances for an increment u (see the header).
 struct Regressors {
   Eigen::Vector2d translation;  // [1, d²]

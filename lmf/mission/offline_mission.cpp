@@ -114,7 +114,8 @@ MissionResult OfflineMission::run() {
 }
 
 void OfflineMission::process_scan(Agent& agent, RobotResult& result) {
-  const LaserScan& scan = agent.log->scans[agent.next_scan++];
+  // As an agent receives it over LCM (laser_scan_t), so both give the same map.
+  const LaserScan scan = at_message_precision(agent.log->scans[agent.next_scan++]);
   const auto start = std::chrono::steady_clock::now();
   const ScanReport report = agent.local_map.process_scan(scan);
   result.scan_times_ms.push_back(elapsed_ms(start));
@@ -129,6 +130,10 @@ void OfflineMission::process_scan(Agent& agent, RobotResult& result) {
 
 void OfflineMission::ship(Agent& agent, RobotResult& result) {
   LocalMapSnapshot snapshot = agent.local_map.snapshot();
+  // As the server receives it (local_map_t carries segment lengths as float).
+  for (SegmentEstimate& segment : snapshot.segments) {
+    segment.length_m = static_cast<double>(static_cast<float>(segment.length_m));
+  }
   agent.local_map.reset();
   ++result.local_maps_shipped;
   check_consistency(snapshot, result);

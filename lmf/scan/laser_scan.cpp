@@ -11,6 +11,16 @@ Eigen::Vector2d LaserScan::beam_point(std::size_t i) const {
   return {ranges_m.at(i) * std::cos(a), ranges_m.at(i) * std::sin(a)};
 }
 
+LaserScan at_message_precision(const LaserScan& scan) {
+  const auto as_float = [](double v) { return static_cast<double>(static_cast<float>(v)); };
+  LaserScan out = scan;
+  out.angle_min_rad = as_float(scan.angle_min_rad);
+  out.angle_increment_rad = as_float(scan.angle_increment_rad);
+  out.max_range_m = as_float(scan.max_range_m);
+  for (double& r : out.ranges_m) r = as_float(r);
+  return out;
+}
+
 double beam_increment_for_180deg(std::size_t num_beams) {
   if (num_beams < 2) throw std::invalid_argument("beam_increment_for_180deg: need at least 2 beams");
   const double n = static_cast<double>(num_beams);

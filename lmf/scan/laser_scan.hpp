@@ -25,6 +25,11 @@ struct LaserScan {
   Eigen::Vector2d beam_point(std::size_t i) const;
 };
 
+// The scan as a laser_scan_t message carries it (angles, maximum range and
+// ranges as float; time and odometry unchanged): lmf-offline feeds its local
+// maps this, so that agents fed over LCM see the very same numbers.
+LaserScan at_message_precision(const LaserScan& scan);
+
 // The angular step of a 180° scan with `num_beams` beams from -pi/2 (datasets/README.md):
 // pi/(n-1) for odd n, pi/n for even n.
 double beam_increment_for_180deg(std::size_t num_beams);

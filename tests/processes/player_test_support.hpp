@@ -133,12 +133,7 @@ struct AgentProbe {
 // offline run on these inputs sees exactly what the agents see.
 inline mission::MissionInputs as_sent(mission::MissionInputs inputs) {
   for (mission::RobotLog& log : inputs.robots) {
-    for (LaserScan& scan : log.scans) {
-      scan.angle_min_rad = static_cast<float>(scan.angle_min_rad);
-      scan.angle_increment_rad = static_cast<float>(scan.angle_increment_rad);
-      scan.max_range_m = static_cast<float>(scan.max_range_m);
-      for (double& r : scan.ranges_m) r = static_cast<float>(r);
-    }
+    for (LaserScan& scan : log.scans) scan = at_message_precision(scan);
   }
   return inputs;
 }

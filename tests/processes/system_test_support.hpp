@@ -84,12 +84,13 @@ inline std::int64_t expect_each_map_fused_once(const std::vector<std::unique_ptr
 // The corrected frames of `map` are lmf-offline's: same fusions in the same
 // order; what remains is segment_t.length being a float on the wire
 // (lmf-offline keeps doubles): ~1e-7 m here.
-inline void expect_frames_as_offline(const fusion::GlobalMap& map, const fusion::GlobalMap& offline) {
+inline void expect_frames_as_offline(const fusion::GlobalMap& map, const fusion::GlobalMap& offline,
+                                     double tolerance_m = 1e-5, double tolerance_rad = 1e-6) {
   for (const auto& frame : offline.corrected_frames()) {
     const auto ours = map.corrected_frame(frame.robot_id);
     ASSERT_TRUE(ours.has_value());
     EXPECT_EQ(ours->seq, frame.seq);
-    EXPECT_TRUE(is_near(ours->x_WL, frame.x_WL, 1e-5, 1e-6))
+    EXPECT_TRUE(is_near(ours->x_WL, frame.x_WL, tolerance_m, tolerance_rad))
         << "robot " << frame.robot_id << ": " << ours->x_WL.x << " " << ours->x_WL.y << " " << ours->x_WL.phi
         << " vs offline " << frame.x_WL.x << " " << frame.x_WL.y << " " << frame.x_WL.phi;
   }
