@@ -175,15 +175,17 @@ ScanReport LocalMap::process_scan(const LaserScan& scan) {
     // (Q is singular only for a standing robot with zero noise floors: no prior, no match.)
     const bool prior_ok = Eigen::LLT<Eigen::Matrix3d>(Q).info() == Eigen::Success;
     const std::optional<ScanMatch> match =
-        prior_ok ? match_scans(scan_history_.reference(), scan_points(scan, matching), u_bar, Q, matching)
+        prior_ok ? match_scans(scan_history_.reference(), scan_points_by_kind(scan, matching), u_bar, Q, matching)
                  : std::nullopt;
     report.scan_match_tried = true;
     if (match) {
       report.scan_matched = true;
       report.scan_match_points = match->correspondences;
+      report.scan_match_objects_moving = match->objects_moving;
       motion = Motion{match->x_AB, match->covariance};
       if (config_.odometry_learning.enabled) {
-        report.odometry_learning_weight = odometry_learner_.observe(u, match->x_AB, match->laser_information);
+        report.odometry_learning_weight =
+            odometry_learner_.observe(u, match->static_x_AB, match->static_laser_information);
       }
     }
   }

@@ -63,6 +63,8 @@ struct ScanReport {
   bool scan_match_tried = false;
   bool scan_matched = false;
   int scan_match_points = 0;  // points matched (when scan_matched)
+  // The match left out small foreground objects that moved (ScanMatch::objects_moving).
+  bool scan_match_objects_moving = false;
   // Its robust weight in the odometry model learner (LocalMapConfig::odometry_learning;
   // 0 when not learned from; below 1/2: the odometry disagreed like a glitch).
   double odometry_learning_weight = 0.0;

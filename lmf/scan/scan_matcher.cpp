@@ -12,6 +12,7 @@
 
 #include "lmf/common/config_check.hpp"
 #include "lmf/scan/correlative_search.hpp"
+#include "lmf/scan/foreground_objects.hpp"
 #include "lmf/spmap/ekf.hpp"
 
 namespace lmf {
@@ -79,6 +80,12 @@ void ScanMatcherConfig::validate() const {
           "at most 60 search_resolution_m");
   require(min_overlap >= 0.0 && min_overlap < 1.0, "min_overlap", min_overlap, "in [0, 1)");
   require(ambiguity_ratio > 0.0 && ambiguity_ratio <= 1.0, "ambiguity_ratio", ambiguity_ratio, "in (0, 1]");
+  require(std::isfinite(max_object_extent_m) && max_object_extent_m >= 0.0, "max_object_extent_m",
+          max_object_extent_m, "finite and >= 0");
+  require(std::isfinite(object_range_jump_m) && object_range_jump_m > 0.0, "object_range_jump_m",
+          object_range_jump_m, "finite and > 0");
+  require(object_consistency_alpha > 0.0 && object_consistency_alpha < 1.0, "object_consistency_alpha",
+          object_consistency_alpha, "in (0, 1)");
   require(history_scans >= 1, "history_scans", history_scans, ">= 1");
   require(std::isfinite(keyframe_distance_m) && keyframe_distance_m >= 0.0, "keyframe_distance_m",
           keyframe_distance_m, "finite and >= 0");
@@ -221,6 +228,23 @@ std::vector<Eigen::Vector2d> scan_points(const LaserScan& scan, const ScanMatche
   return points;
 }
 
+ScanPoints scan_points_by_kind(const LaserScan& scan, const ScanMatcherConfig& config) {
+  config.validate();
+  std::vector<bool> usable(scan.ranges_m.size());
+  for (std::size_t i = 0; i < usable.size(); ++i) usable[i] = usable_range(scan, i, config);
+  const std::vector<bool> object =
+      small_foreground_objects(scan, usable, config.max_object_extent_m, config.object_range_jump_m);
+  ScanPoints out;
+  out.all.reserve(usable.size());
+  out.structure.reserve(usable.size());
+  for (std::size_t i = 0; i < usable.size(); ++i) {
+    if (!usable[i]) continue;
+    out.all.push_back(scan.beam_point(i));
+    if (!object[i]) out.structure.push_back(scan.beam_point(i));
+  }
+  return out;
+}
+
 Eigen::RowVector3d point_to_line_jacobian(const Pose2& x, const Eigen::Vector2d& b, const Eigen::Vector2d& n) {
   return point_to_line_row(rotation(x.phi), b, n);
 }
@@ -336,6 +360,8 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
   out.match.search_pose = x0;
   out.match.covariance = H_llt.solve(Eigen::Matrix3d::Identity());
   out.match.covariance = (0.5 * (out.match.covariance + out.match.covariance.transpose())).eval();
+  out.match.static_x_AB = out.match.x_AB;
+  out.match.static_laser_information = out.match.laser_information;
   return out;
 }
 
@@ -423,6 +449,45 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
   refined->match.search_score = best->score;
   refined->match.search_pose = best->x;
   return refined->match;
+}
+
+std::optional<ScanMatch> match_scans(const ReferenceScan& A, const ScanPoints& B, const Pose2& u_hat,
+                                     const Eigen::Matrix3d& Q, const ScanMatcherConfig& config) {
+  std::optional<ScanMatch> with_objects = match_scans(A, B.all, u_hat, Q, config);
+  if (B.structure.size() == B.all.size()) return with_objects;
+  // Without the objects: from the full match's pose (the MAP problem is the
+  // same but for the objects' points, so its optimum is near), or searched
+  // afresh when the objects made the full match fail.
+  std::optional<ScanMatch> structure =
+      with_objects ? refine_match(A, B.structure, with_objects->x_AB, u_hat, Q, config)
+                   : match_scans(A, B.structure, u_hat, Q, config);
+  if (!structure) {
+    // The objects are most of what there is: nothing to tell them apart from.
+    return with_objects;
+  }
+  structure->static_x_AB = structure->x_AB;
+  structure->static_laser_information = structure->laser_information;
+  if (!with_objects) {
+    structure->objects_moving = true;
+    return structure;
+  }
+  // Do the objects agree with the rest of the scene? The full estimate seen
+  // from the structure's, against the structure's covariance (a conservative
+  // stand-in for that of the difference, Σ_structure − Σ_all).
+  const Pose2 d = between(structure->x_AB, with_objects->x_AB);
+  const Eigen::Vector3d delta(d.x, d.y, wrap_angle(d.phi));
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(structure->covariance);
+  const double d2 = delta.dot(ldlt.solve(delta));
+  if (ldlt.info() == Eigen::Success && std::isfinite(d2) &&
+      d2 > spmap::chi2_threshold(3, config.object_consistency_alpha)) {
+    structure->objects_moving = true;
+    structure->search_score = with_objects->search_score;
+    structure->search_pose = with_objects->search_pose;
+    return structure;
+  }
+  with_objects->static_x_AB = structure->x_AB;
+  with_objects->static_laser_information = structure->laser_information;
+  return with_objects;
 }
 
 }  // namespace lmf

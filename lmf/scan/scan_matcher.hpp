@@ -58,6 +58,15 @@ struct ScanMatcherConfig {
   double min_range_m = 0.05;
   double max_range_m = 30.0;
   double no_return_margin_m = 0.1;  // a reading >= scan.max_range_m - this is "no return"
+  // Small objects in front of their surroundings (foreground_objects.hpp):
+  // people and robots, which may move, are at most this wide (m; 0: none are
+  // told apart) ...
+  double max_object_extent_m = 0.8;
+  // ... and stand out from what lies beside them by a range jump of at least this (m).
+  double object_range_jump_m = 0.3;
+  // The match with them is kept unless the match without them differs from
+  // it beyond chi2inv(1 - object_consistency_alpha, 3): then they moved.
+  double object_consistency_alpha = 0.01;
   // A reference point gets a normal from its beam neighbours within this
   // distance (m) when they lie on a line (smallest / largest scatter eigenvalue
   // below max_normal_flatness); points without one are not used.
@@ -169,6 +178,13 @@ class ReferenceScan {
 // The usable points of scan B (m, robot frame).
 std::vector<Eigen::Vector2d> scan_points(const LaserScan& scan, const ScanMatcherConfig& config);
 
+// The same, and those of them not on small foreground objects (max_object_extent_m).
+struct ScanPoints {
+  std::vector<Eigen::Vector2d> all;
+  std::vector<Eigen::Vector2d> structure;
+};
+ScanPoints scan_points_by_kind(const LaserScan& scan, const ScanMatcherConfig& config);
+
 struct ScanMatch {
   Pose2 x_AB;                    // the refined increment
   Eigen::Matrix3d covariance;    // of its perturbation p (x_true = x_AB ⊕ p): (Λ' + J_rᵀ Q⁻¹ J_r)⁻¹
@@ -187,6 +203,17 @@ struct ScanMatch {
   double rms_m = 0.0;            // RMS point-to-line distance of the matched points
   double search_score = 0.0;     // the correlative search's best score (mean likelihood, [0, 1])
   Pose2 search_pose;             // ... and its pose
+  // The overload on ScanPoints only: the small foreground objects disagreed
+  // with the rest of the scene (or made the match fail), so this match is
+  // without them.
+  bool objects_moving = false;
+  // The increment and laser information from the static structure alone
+  // (without small foreground objects; x_AB and laser_information when the
+  // scan has none). An object that moves along with the robot biases x_AB a
+  // little, scan after scan, below what one comparison can tell: the odometry
+  // error model learns from these instead, or the bias would become its scale.
+  Pose2 static_x_AB;
+  Eigen::Matrix3d static_laser_information = Eigen::Matrix3d::Zero();
 };
 
 // Matches B against A with the odometry increment û and covariance Q (of p_u,
@@ -197,6 +224,16 @@ struct ScanMatch {
 // is not symmetric positive definite.
 std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& B,
                                      const Pose2& u_hat, const Eigen::Matrix3d& Q, const ScanMatcherConfig& config);
+
+// The same, robust to objects that move: B.all matched as above; when B has
+// small foreground objects, the match without them (B.structure) is tried as
+// well and returned instead when the two differ beyond
+// chi2inv(1 - object_consistency_alpha, 3) in the covariance of the match
+// without them, or when only it succeeds (objects_moving is then set). A robot
+// following another down a corridor sees its body at a constant distance
+// ahead: matched, the body says "standing still" where the walls say nothing.
+std::optional<ScanMatch> match_scans(const ReferenceScan& A, const ScanPoints& B, const Pose2& u_hat,
+                                     const Eigen::Matrix3d& Q, const ScanMatcherConfig& config);
 
 // The refinement alone (stage 2, from the start pose x0 instead of the search's
 // best): for tests that compare it with the full match. std::nullopt on too few

@@ -7,6 +7,9 @@ void read_scan_matcher_config(io::JsonReader& reader, ScanMatcherConfig& config)
   reader.read("min_range_m", config.min_range_m, io::non_negative());
   reader.read("max_range_m", config.max_range_m, io::positive());
   reader.read("no_return_margin_m", config.no_return_margin_m, io::non_negative());
+  reader.read("max_object_extent_m", config.max_object_extent_m, io::non_negative());
+  reader.read("object_range_jump_m", config.object_range_jump_m, io::positive());
+  reader.read("object_consistency_alpha", config.object_consistency_alpha, io::in_open(0.0, 1.0));
   reader.read("normal_radius_m", config.normal_radius_m, io::positive());
   reader.read("max_normal_flatness", config.max_normal_flatness, io::in_closed(0.0, 1.0));
   reader.read("search_window_m", config.search_window_m, io::non_negative());

@@ -186,7 +186,7 @@ TEST(ScanMatcher, AMatchFarFromTheOdometryPriorIsKeptAndItsDistanceReported) {
   const ReferenceScan reference = ReferenceScan::from(A, config);
   const Pose2 u(0.5, 0.0, 0.0);
   const Eigen::Matrix3d Q = odometry_like_covariance(u);
-  EXPECT_FALSE(match_scans(reference, {}, u, Q, config).has_value());
+  EXPECT_FALSE(match_scans(reference, std::vector<Eigen::Vector2d>{}, u, Q, config).has_value());
   // The true motion is 0.8 m, the odometry says 0.5 m with a 4 cm std.
   const LaserScan B = testing::make_scan(room(), Pose2(0.8, 0.0, 0.0), 361);
   const std::optional<ScanMatch> m = match_scans(reference, scan_points(B, config), u, Q, config);
