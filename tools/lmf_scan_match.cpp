@@ -112,7 +112,7 @@ int run(const Options& o) {
     odometry.add(u, Q, truth);
     const double t0 = thread_cpu_micros();
     const std::optional<lmf::ScanMatch> m =
-        lmf::match_scans(history.reference(), lmf::scan_points(b, matching), u, Q, matching);
+        lmf::match_scans(history.reference(), lmf::scan_points_by_kind(b, matching), u, Q, matching);
     micros.push_back(thread_cpu_micros() - t0);
     // As LocalMap::process_scan: the history goes on from the match, restarts after the odometry.
     history.add(b, m ? m->x_AB : u, m.has_value());

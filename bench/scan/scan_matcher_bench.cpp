@@ -66,7 +66,7 @@ void BM_MatchConsecutiveScans(benchmark::State& state) {
     const lmf::LaserScan& a = scans[k - 1];
     const lmf::LaserScan& b = scans[k];
     const lmf::Pose2 u = lmf::between(a.odometry, b.odometry);
-    const auto m = lmf::match_scans(history.reference(), lmf::scan_points(b, config.scan_matching), u,
+    const auto m = lmf::match_scans(history.reference(), lmf::scan_points_by_kind(b, config.scan_matching), u,
                                     lmf::local_map::odometry_noise(u, config), config.scan_matching);
     history.add(b, m ? m->x_AB : u, m.has_value());
     benchmark::DoNotOptimize(m);
