@@ -77,8 +77,9 @@ namespace lmf::server {
 // 3: the global map inside is kGlobalMapArchiveVersion 3 (robot footprints), fusion
 // reports carry footprint_segments_removed. 4: archive version 4 (crossing
 // segments), fusion reports carry crossing_segments_removed. 5: the global map
-// inside is kGlobalMapArchiveVersion 5 (no transient re-entrancy flag).
-inline constexpr std::uint32_t kStateVersion = 5;
+// inside is kGlobalMapArchiveVersion 5 (no transient re-entrancy flag). 6: archive
+// version 6 (frame registration), fusion reports carry its outcome.
+inline constexpr std::uint32_t kStateVersion = 6;
 
 // The state directory cannot be used (in use, unreadable, every snapshot corrupt, I/O error).
 class StateError : public std::runtime_error {

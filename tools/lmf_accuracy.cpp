@@ -6,9 +6,9 @@
 // bash's `time` with TIMEFORMAT='%R %U %S' prints it). A case without report.json failed: its
 // row says so (stderr.txt is quoted in the JSON) and the tool exits 1 after writing everything.
 //
-// Fusions refused: counted from report.json when it says (a top-level "fusions_refused", else
-// fusions[] entries with "refused": true). Today's fusion (FusionReport) never refuses a local
-// map, so neither exists and the count is 0 with "fusions_refused_counted": false.
+// Frame registration (report.json fusions[].registration): "relocated" counts the fusions whose
+// frame moved to where the nearby walls put it; "refused" those whose registration disagreed
+// with the predicted frame but was ambiguous or degenerate, so nothing moved.
 #include <cmath>
 #include <cstdio>
 #include <exception>
@@ -116,23 +116,17 @@ json read_case(const std::string& name, const std::string& dir) {
   row["local_maps_shipped"] = shipped;
   row["local_maps_fused"] = fused;
 
+  long relocated = 0;
   long refused = 0;
-  bool counted = false;
   const json fusions = ok ? report.value("fusions", json::array()) : json::array();
-  if (ok && report.contains("fusions_refused") && report["fusions_refused"].is_number()) {
-    refused = report["fusions_refused"].get<long>();
-    counted = true;
-  } else {
-    for (const json& f : fusions) {
-      if (f.contains("refused")) {
-        counted = true;
-        if (f["refused"].is_boolean() && f["refused"].get<bool>()) ++refused;
-      }
-    }
+  for (const json& f : fusions) {
+    const std::string outcome = f.value("registration", std::string());
+    if (outcome == "relocated") ++relocated;
+    if (outcome == "ambiguous" || outcome == "degenerate") ++refused;
   }
   row["fusions"] = fusions.size();
-  row["fusions_refused"] = refused;
-  row["fusions_refused_counted"] = counted;
+  row["frames_relocated"] = relocated;
+  row["relocations_refused"] = refused;
   const bool global_psd = ok && report.value("global_covariance_always_ok", false);
   row["global_psd_throughout"] = global_psd;
   row["local_psd_throughout"] = ok && local_psd;
@@ -170,9 +164,10 @@ const std::vector<Column>& columns() {
          if (r["segments_matching_no_wall"].is_null()) return std::string("-");
          return cell(r["segments_matching_no_wall"], "%.0f") + " / " + cell(r["map_segments"], "%.0f");
        }},
-      {"fusions refused",
+      {"relocated / refused / fusions",
        [](const json& r) {
-         return std::to_string(r["fusions_refused"].get<long>()) + " / " + std::to_string(r["fusions"].get<long>());
+         return std::to_string(r["frames_relocated"].get<long>()) + " / " +
+                std::to_string(r["relocations_refused"].get<long>()) + " / " + std::to_string(r["fusions"].get<long>());
        }},
       {"P PSD", [](const json& r) { return std::string(r["psd_throughout"].get<bool>() ? "yes" : "NO"); }},
       {"odom ATE m", [](const json& r) { return cell(r["odometry_ate_m"], "%.2f"); }},
@@ -258,13 +253,10 @@ int main(int argc, char** argv) {
       all_ok = all_ok && rows.back()["status"] == "ok";
       if (rows.back()["cpu_s"].is_number()) cpu += rows.back()["cpu_s"].get<double>();
     }
-    bool refusals_counted = false;
-    for (const json& r : rows) refusals_counted = refusals_counted || r["fusions_refused_counted"].get<bool>();
-    if (!refusals_counted) {
-      notes.emplace_back(
-          "fusions refused: 0 everywhere because no fusion counts refusals today (FusionReport has no refused "
-          "field; each table entry is refused / fusions)");
-    }
+    notes.emplace_back(
+        "relocated / refused / fusions: fusions whose frame the registration against the nearby map moved; "
+        "whose registration disagreed with the predicted frame but was ambiguous or degenerate (nothing moved); "
+        "all fusions");
     const std::string table = text_table(rows);
     std::cout << table;
     for (const std::string& n : notes) std::cout << "note: " << n << "\n";

@@ -4,6 +4,7 @@
 // ones left there and adds its own part, and each can be run and timed on its own.
 //
 //   step 1   augment                          P⁻ = [[P, 0], [0, P_Mr]] (eq. 4)
+//   beyond   relocate_frame                   registration against the nearby map
 //   step 2   gate                             cheap geometric pre-filter of the pairs
 //   step 2   test_individual_compatibility    eq. (12) measurements, chi2 (eq. 8) + overlap
 //   step 3   test_joint_compatibility         incremental joint compatibility
@@ -96,6 +97,16 @@ struct FusionContext {
 // of L_r, independent of the map; P_Mr is the shipped covariance times
 // GlobalMapConfig::local_map_covariance_scale.
 void augment(FusionContext& f);
+
+// Beyond the paper, before the pairing tests: the local map registered
+// against the nearby global map (frame_registration.hpp). When the registered
+// frame contradicts the predicted one (χ², 3 dof, at `alpha`, in the frame's
+// covariance plus the registration's resolution) and the registration is
+// neither ambiguous nor degenerate, L_r moves there (its children with it)
+// and its covariance grows by the move, diag(δ_x², δ_y², δ_φ²): the
+// prediction was overconfident by that much, and the pairing tests then judge
+// the pairings from the registered frame. Otherwise nothing changes.
+void relocate_frame(FusionContext& f);
 
 // Step 2: the geometric gate between every global segment (outside L_r) and
 // every local segment; fills `gated` and the report's funnel counts.

@@ -89,6 +89,19 @@ void GlobalMapConfig::validate() const {
   require(std::isfinite(crossing_margin_m) && crossing_margin_m >= 0.0, "crossing_margin_m must be finite and >= 0");
   require(crossing_max_angle_rad > 0.0 && crossing_max_angle_rad <= std::numbers::pi / 2,
           "crossing_max_angle_rad must be in (0, pi/2]");
+  registration.validate();
+}
+
+const char* to_string(RegistrationOutcome outcome) {
+  switch (outcome) {
+    case RegistrationOutcome::kNotRun: return "not_run";
+    case RegistrationOutcome::kNothingNearby: return "nothing_nearby";
+    case RegistrationOutcome::kAgrees: return "agrees";
+    case RegistrationOutcome::kAmbiguous: return "ambiguous";
+    case RegistrationOutcome::kDegenerate: return "degenerate";
+    case RegistrationOutcome::kRelocated: return "relocated";
+  }
+  return "unknown";
 }
 
 bool FusionReport::covariance_ok() const {
@@ -357,6 +370,7 @@ FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& snapshot)
   // Steps 1-4 of docs/design.md §5, each timed on its own.
   const std::pair<void (*)(FusionContext&), double PhaseTimes::*> pairing_steps[] = {
       {augment, &PhaseTimes::augment_s},                           // step 1
+      {relocate_frame, &PhaseTimes::registration_s},               // beyond the paper
       {gate, &PhaseTimes::gate_s},                                 // step 2
       {test_individual_compatibility, &PhaseTimes::individual_s},  // step 2
       {test_joint_compatibility, &PhaseTimes::joint_s},            // step 3

@@ -57,6 +57,7 @@
 #include "lmf/fusion/global_state.hpp"
 #include "lmf/fusion/robot_arrivals.hpp"
 #include "lmf/fusion/robot_footprints.hpp"
+#include "lmf/fusion/frame_registration.hpp"
 #include "lmf/geometry/pose2.hpp"
 #include "lmf/local_map/local_map_snapshot.hpp"
 #include "lmf/spmap/segment_ops.hpp"
@@ -163,6 +164,12 @@ struct GlobalMapConfig {
   // crossing_margin_m = 0 turns it off.
   double crossing_margin_m = 0.1;
   double crossing_max_angle_rad = std::numbers::pi / 3;
+  // Frame registration (beyond the paper; frame_registration.hpp): before the
+  // pairing tests, the local map is registered against the nearby global map;
+  // when the registered frame contradicts the predicted one beyond the χ²(3)
+  // test at `alpha`, unambiguously, the frame moves there with its covariance
+  // widened by the move (fusion_steps.hpp, relocate_frame).
+  FrameRegistrationConfig registration;
 
   // Throws std::invalid_argument naming the first bad field.
   void validate() const;
@@ -172,6 +179,7 @@ struct GlobalMapConfig {
 struct PhaseTimes {
   double validate_s = 0.0;
   double augment_s = 0.0;
+  double registration_s = 0.0;
   double gate_s = 0.0;
   double individual_s = 0.0;
   double joint_s = 0.0;
@@ -192,11 +200,29 @@ struct MapCounts {
   std::int64_t state_dimension = 0;
 };
 
+// What the frame registration concluded (fusion_steps.hpp, relocate_frame).
+enum class RegistrationOutcome {
+  kNotRun,         // disabled, or a backward-anchored map (its frame is the robot's next one)
+  kNothingNearby,  // no global wall near the local map, or none explaining min_score of it
+  kAgrees,         // the registered frame is within the predicted one's uncertainty
+  kAmbiguous,      // disagrees, but another pose (or the prediction) explains the walls nearly as well
+  kDegenerate,     // disagrees, but the walls leave a direction unconstrained (a corridor)
+  kRelocated,      // disagrees, unambiguously: the frame moved to the registered pose
+};
+const char* to_string(RegistrationOutcome outcome);
+
 struct FusionReport {
   int robot_id = 0;
   std::int64_t seq = 0;
   int local_segments = 0;
   bool anchored_backward = false;  // frame derived from the robot's next frame
+
+  // Frame registration: its outcome, the registered frame's offset from the
+  // predicted one (in L_r's own frame), its χ² distance (3 dof) and score.
+  RegistrationOutcome registration = RegistrationOutcome::kNotRun;
+  Pose2 registration_offset;
+  double registration_distance2 = 0.0;
+  double registration_score = 0.0;
 
   // Pairing funnel: pairs considered = global segments x local segments.
   std::int64_t pairs_considered = 0;

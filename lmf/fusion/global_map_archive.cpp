@@ -83,7 +83,9 @@ class GlobalMapArchive {
 //               careful_absolute_floor, snapshot_tolerance, max_coordinate_m,
 //               local_map_covariance_scale),
 //               u8 first_robot_defines_world, u8 health, i32 frame_history_per_robot,
-//               f64 footprint_radius_m, f64 crossing_margin_m, f64 crossing_max_angle_rad
+//               f64 footprint_radius_m, f64 crossing_margin_m, f64 crossing_max_angle_rad,
+//               registration: u8 enabled, 6 f64 (window_m, window_rad, resolution_m,
+//               min_score, ambiguity_ratio, min_constraint)
 //   state       i64 next_id, i64 n, i64 capacity, u64 count + entities
 //               (i64 id, u8 kind, pose, f64 length, u8 has_parent, i64 parent,
 //               i64 offset), then P's lower triangle by columns (column j:
@@ -110,6 +112,11 @@ void GlobalMapArchive::write_config(ArchiveWriter& w, const GlobalMapConfig& c) 
   w.f64(c.footprint_radius_m);
   w.f64(c.crossing_margin_m);
   w.f64(c.crossing_max_angle_rad);
+  const FrameRegistrationConfig& g = c.registration;
+  w.boolean(g.enabled);
+  for (const double v : {g.window_m, g.window_rad, g.resolution_m, g.min_score, g.ambiguity_ratio, g.min_constraint}) {
+    w.f64(v);
+  }
 }
 
 GlobalMapConfig GlobalMapArchive::read_config(ArchiveReader& r) {
@@ -127,6 +134,11 @@ GlobalMapConfig GlobalMapArchive::read_config(ArchiveReader& r) {
   c.footprint_radius_m = r.f64();
   c.crossing_margin_m = r.f64();
   c.crossing_max_angle_rad = r.f64();
+  FrameRegistrationConfig& g = c.registration;
+  g.enabled = r.boolean();
+  for (double* v : {&g.window_m, &g.window_rad, &g.resolution_m, &g.min_score, &g.ambiguity_ratio, &g.min_constraint}) {
+    *v = r.f64();
+  }
   try {
     c.validate();
   } catch (const std::invalid_argument& e) {
@@ -402,6 +414,10 @@ void write_fusion_report(ArchiveWriter& w, const FusionReport& f) {
   w.i64(f.seq);
   w.i32(f.local_segments);
   w.boolean(f.anchored_backward);
+  w.u8(static_cast<std::uint8_t>(f.registration));
+  w.pose(f.registration_offset);
+  w.f64(f.registration_distance2);
+  w.f64(f.registration_score);
   w.i64(f.pairs_considered);
   w.i64(f.gate_rejected);
   for (const int v : {f.chi2_rejected, f.overlap_rejected, f.jc_candidates, f.jc_rejected, f.pairings_accepted,
@@ -425,7 +441,7 @@ void write_fusion_report(ArchiveWriter& w, const FusionReport& f) {
   for (const int v : {c.segments, c.submaps, c.robots_joined, c.graph_edges, c.queued_local_maps}) w.i32(v);
   w.i64(c.state_dimension);
   const PhaseTimes& t = f.time;
-  for (const double v : {t.validate_s, t.augment_s, t.gate_s, t.individual_s, t.joint_s, t.update_s, t.geometric_s,
+  for (const double v : {t.validate_s, t.augment_s, t.registration_s, t.gate_s, t.individual_s, t.joint_s, t.update_s, t.geometric_s,
                          t.frames_s, t.remove_s, t.health_s, t.total_s}) {
     w.f64(v);
   }
@@ -437,6 +453,14 @@ FusionReport read_fusion_report(ArchiveReader& r) {
   f.seq = r.i64();
   f.local_segments = r.i32();
   f.anchored_backward = r.boolean();
+  const std::uint8_t registration = r.u8();
+  if (registration > static_cast<std::uint8_t>(RegistrationOutcome::kRelocated)) {
+    r.fail("corrupt: registration outcome " + std::to_string(registration));
+  }
+  f.registration = static_cast<RegistrationOutcome>(registration);
+  f.registration_offset = r.pose();
+  f.registration_distance2 = r.f64();
+  f.registration_score = r.f64();
   f.pairs_considered = r.i64();
   f.gate_rejected = r.i64();
   for (int* v : {&f.chi2_rejected, &f.overlap_rejected, &f.jc_candidates, &f.jc_rejected, &f.pairings_accepted,
@@ -463,7 +487,7 @@ FusionReport read_fusion_report(ArchiveReader& r) {
   for (int* v : {&c.segments, &c.submaps, &c.robots_joined, &c.graph_edges, &c.queued_local_maps}) *v = r.i32();
   c.state_dimension = r.i64();
   PhaseTimes& t = f.time;
-  for (double* v : {&t.validate_s, &t.augment_s, &t.gate_s, &t.individual_s, &t.joint_s, &t.update_s, &t.geometric_s,
+  for (double* v : {&t.validate_s, &t.augment_s, &t.registration_s, &t.gate_s, &t.individual_s, &t.joint_s, &t.update_s, &t.geometric_s,
                     &t.frames_s, &t.remove_s, &t.health_s, &t.total_s}) {
     *v = r.f64();
   }

@@ -44,10 +44,12 @@ namespace lmf::fusion {
 // (GlobalMapConfig::footprint_radius_m and the recorded positions). 4: crossing
 // segments (GlobalMapConfig::crossing_*, FusionReport::crossing_segments_removed).
 // 5: the map's transient "resolving sightings" flag is no longer stored (it
-// was always false between calls; GlobalMap no longer has one). Older
+// was always false between calls; GlobalMap no longer has one). 6: frame
+// registration (GlobalMapConfig::registration; FusionReport's registration
+// outcome, offset, distance and score; PhaseTimes::registration_s). Older
 // versions are refused by name ("older version"), never read with this layout:
 // a server that finds one starts from its next good snapshot or from empty.
-inline constexpr std::uint32_t kGlobalMapArchiveVersion = 5;
+inline constexpr std::uint32_t kGlobalMapArchiveVersion = 6;
 
 // The binary archive primitives (lmf/io/binary_archive.hpp), under the names
 // the map's archive has always used.

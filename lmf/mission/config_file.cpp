@@ -26,6 +26,15 @@ void read_config(io::JsonReader& r, fusion::GlobalMapConfig& c) {
   r.read("footprint_radius_m", c.footprint_radius_m);
   r.read("crossing_margin_m", c.crossing_margin_m);
   r.read("crossing_max_angle_rad", c.crossing_max_angle_rad);
+  if (io::JsonReader* g = r.optional_section("registration")) {
+    g->read("enabled", c.registration.enabled);
+    g->read("window_m", c.registration.window_m);
+    g->read("window_rad", c.registration.window_rad);
+    g->read("resolution_m", c.registration.resolution_m);
+    g->read("min_score", c.registration.min_score);
+    g->read("ambiguity_ratio", c.registration.ambiguity_ratio);
+    g->read("min_constraint", c.registration.min_constraint);
+  }
 }
 
 void read_config(io::JsonReader& r, SightingNoise& c) {

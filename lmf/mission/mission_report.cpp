@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <stdexcept>
 
@@ -98,6 +99,10 @@ json fusion_report_json(const fusion::FusionReport& r) {
             {"seq", r.seq},
             {"local_segments", r.local_segments},
             {"anchored_backward", r.anchored_backward},
+            {"registration", fusion::to_string(r.registration)},
+            {"registration_offset", {r.registration_offset.x, r.registration_offset.y, r.registration_offset.phi}},
+            {"registration_distance2", r.registration_distance2},
+            {"registration_score", r.registration_score},
             {"pairs_considered", r.pairs_considered},
             {"gate_rejected", r.gate_rejected},
             {"chi2_rejected", r.chi2_rejected},
@@ -329,6 +334,15 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
     int crossing = 0;
     for (const fusion::FusionReport& f : result.fusions) crossing += f.crossing_segments_removed;
     s << "global map: " << crossing << " segments removed as the less certain of two that cross\n";
+  }
+  if (mission.global_map().config().registration.enabled) {
+    std::map<fusion::RegistrationOutcome, int> outcomes;
+    for (const fusion::FusionReport& f : result.fusions) ++outcomes[f.registration];
+    using fusion::RegistrationOutcome;
+    s << "frame registration: " << outcomes[RegistrationOutcome::kRelocated] << " frames relocated, "
+      << outcomes[RegistrationOutcome::kAmbiguous] << " ambiguous and " << outcomes[RegistrationOutcome::kDegenerate]
+      << " degenerate disagreements left alone, " << outcomes[RegistrationOutcome::kAgrees] << " agreed, "
+      << outcomes[RegistrationOutcome::kNothingNearby] << " with nothing nearby\n";
   }
   const fusion::MapCounts counts = mission.global_map().counts();
   std::snprintf(line, sizeof line,

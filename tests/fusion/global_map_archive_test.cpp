@@ -133,6 +133,12 @@ TEST(GlobalMapArchiveTest, RestoredMapContinuesBitIdentically) {
   config.footprint_radius_m = 0.35;  // the scan poses' footprints are archived too
   config.crossing_margin_m = 0.15;
   config.crossing_max_angle_rad = 0.9;
+  config.registration.window_m = 1.2;  // every registration field is archived
+  config.registration.window_rad = 0.08;
+  config.registration.resolution_m = 0.04;
+  config.registration.min_score = 0.35;
+  config.registration.ambiguity_ratio = 0.85;
+  config.registration.min_constraint = 0.06;
   GlobalMap original(config);
   std::mt19937 rng(7);
   first_half(original, rng);
@@ -224,9 +230,10 @@ TEST(GlobalMapArchiveTest, BrokenInvariantsAreRejectedEvenWithAGoodChecksum) {
   ArchiveWriter w(payload);
   write_global_map(w, map);
   // The first entity's offset sits after the config (11 f64 + 2 u8 + i32 + 3 f64
-  // = 118 bytes), next_id, n, capacity, count (32) and its id, kind, pose,
-  // length, parent flag and parent (58 - 8 bytes): set it to 1.
-  const std::size_t offset_at = 118 + 32 + 50;
+  // + the registration's u8 + 6 f64 = 167 bytes), next_id, n, capacity, count
+  // (32) and its id, kind, pose, length, parent flag and parent (58 - 8 bytes):
+  // set it to 1.
+  const std::size_t offset_at = 167 + 32 + 50;
   std::int64_t offset = 0;
   std::memcpy(&offset, payload.data() + offset_at, sizeof offset);
   ASSERT_EQ(offset, 0);
@@ -281,6 +288,12 @@ TEST(GlobalMapArchiveTest, SameConfigComparesEveryField) {
   EXPECT_FALSE(same_config(a, b));
   b = a;
   b.crossing_max_angle_rad = 1.0;
+  EXPECT_FALSE(same_config(a, b));
+  b = a;
+  b.registration.enabled = false;
+  EXPECT_FALSE(same_config(a, b));
+  b = a;
+  b.registration.min_constraint = 0.1;
   EXPECT_FALSE(same_config(a, b));
 }
 

@@ -31,6 +31,22 @@ TEST(MissionConfigFile, ReadsSectionsAndKeepsDefaults) {
   EXPECT_DOUBLE_EQ(c.sighting_noise.sigma_xy_m, SightingNoise{}.sigma_xy_m);
 }
 
+TEST(MissionConfigFile, ReadsTheFrameRegistration) {
+  const MissionConfig c = parse_mission_config(
+      R"({"global_map": {"registration": {"enabled": false, "window_m": 2.5, "window_rad": 0.2,
+          "resolution_m": 0.08, "min_score": 0.5, "ambiguity_ratio": 0.8, "min_constraint": 0.1}}})");
+  const fusion::FrameRegistrationConfig& g = c.global_map.registration;
+  EXPECT_FALSE(g.enabled);
+  EXPECT_DOUBLE_EQ(g.window_m, 2.5);
+  EXPECT_DOUBLE_EQ(g.window_rad, 0.2);
+  EXPECT_DOUBLE_EQ(g.resolution_m, 0.08);
+  EXPECT_DOUBLE_EQ(g.min_score, 0.5);
+  EXPECT_DOUBLE_EQ(g.ambiguity_ratio, 0.8);
+  EXPECT_DOUBLE_EQ(g.min_constraint, 0.1);
+  EXPECT_THROW(parse_mission_config(R"({"global_map": {"registration": {"window": 1}}})"), std::invalid_argument);
+  EXPECT_THROW(parse_mission_config(R"({"global_map": {"registration": {"min_score": 2}}})"), std::invalid_argument);
+}
+
 TEST(MissionConfigFile, UnknownKeysAndBadValuesNameTheKey) {
   try {
     parse_mission_config(R"({"local_map": {"ship_distanse_m": 5}})", "robot.json");

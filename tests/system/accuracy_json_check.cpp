@@ -40,10 +40,10 @@ int main(int argc, char** argv) {
   }
   // Numbers a scored case always has; the others may be null (map error on a real log).
   const char* numbers[] = {"ate_m", "ate_deg", "rpe_1m_m", "rpe_1m_deg", "rpe_10m_m", "rpe_10m_deg",
-                           "wall_s", "cpu_s", "fusions", "fusions_refused", "robots", "robots_joined"};
+                           "wall_s", "cpu_s", "fusions", "frames_relocated", "relocations_refused",
+                           "robots", "robots_joined"};
   const char* nullable[] = {"map_rms_m", "map_segments", "segments_matching_no_wall", "odometry_ate_m"};
-  const char* booleans[] = {"psd_throughout", "global_psd_throughout", "local_psd_throughout",
-                            "fusions_refused_counted"};
+  const char* booleans[] = {"psd_throughout", "global_psd_throughout", "local_psd_throughout"};
   for (const nlohmann::json& c : cases) {
     const std::string name = c.value("case", std::string("?"));
     if (c.value("status", std::string()) != "ok") fail(name + ": status is not ok");

@@ -1,0 +1,128 @@
+#include "lmf/fusion/frame_registration.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+
+#include "lmf/scan/correlative_search.hpp"
+
+namespace lmf::fusion {
+
+void FrameRegistrationConfig::validate() const {
+  const auto require = [](bool ok, const char* what) {
+    if (!ok) throw std::invalid_argument(std::string("FrameRegistrationConfig: ") + what);
+  };
+  require(std::isfinite(window_m) && window_m >= 0.0, "window_m must be finite and >= 0");
+  require(std::isfinite(window_rad) && window_rad >= 0.0, "window_rad must be finite and >= 0");
+  require(std::isfinite(resolution_m) && resolution_m > 0.0, "resolution_m must be finite and > 0");
+  require(std::isfinite(min_score) && min_score > 0.0 && min_score < 1.0, "min_score must be in (0, 1)");
+  require(std::isfinite(ambiguity_ratio) && ambiguity_ratio > 0.0 && ambiguity_ratio <= 1.0,
+          "ambiguity_ratio must be in (0, 1]");
+  require(std::isfinite(min_constraint) && min_constraint >= 0.0 && min_constraint <= 1.0,
+          "min_constraint must be in [0, 1]");
+}
+
+namespace {
+
+struct SampledPoint {
+  Eigen::Vector2d p;  // in the segments' frame
+  Eigen::Vector2d n;  // unit normal of its wall
+};
+
+// Points every `spacing` along each segment, ends included.
+std::vector<SampledPoint> sample(const std::vector<RegistrationSegment>& segments, double spacing) {
+  std::vector<SampledPoint> out;
+  for (const RegistrationSegment& s : segments) {
+    const Eigen::Vector2d c(s.location.x, s.location.y);
+    const Eigen::Vector2d u(std::cos(s.location.phi), std::sin(s.location.phi));
+    const int steps = std::max(1, static_cast<int>(std::ceil(s.length_m / spacing)));
+    for (int i = 0; i <= steps; ++i) {
+      const double t = -0.5 * s.length_m + s.length_m * i / steps;
+      out.push_back({c + t * u, Eigen::Vector2d(-u.y(), u.x())});
+    }
+  }
+  return out;
+}
+
+double mean_likelihood(const LikelihoodField& field, const std::vector<Eigen::Vector2d>& points, const Pose2& x) {
+  const Eigen::Matrix2d R = Eigen::Rotation2Dd(x.phi).toRotationMatrix();
+  const Eigen::Vector2d t(x.x, x.y);
+  double sum = 0.0;
+  for (const Eigen::Vector2d& p : points) sum += field.likelihood(t + R * p);
+  return points.empty() ? 0.0 : sum / static_cast<double>(points.size());
+}
+
+}  // namespace
+
+std::optional<FrameRegistration> register_frame(const std::vector<RegistrationSegment>& local,
+                                                const std::vector<RegistrationSegment>& global,
+                                                const Pose2& x_WL, const FrameRegistrationConfig& config) {
+  const double r = config.resolution_m;
+  const std::vector<SampledPoint> local_points = sample(local, 2.0 * r);
+  if (local_points.empty() || global.empty()) return std::nullopt;
+  std::vector<Eigen::Vector2d> points;
+  points.reserve(local_points.size());
+  double farthest = 0.0;
+  Eigen::Matrix3d information = Eigen::Matrix3d::Zero();  // mean over points of J Jᵀ, J = ∂(n·p_W)/∂(x, y, φ)
+  for (const SampledPoint& s : local_points) {
+    points.push_back(s.p);
+    farthest = std::max(farthest, s.p.norm());
+    const Eigen::Vector3d J(s.n.x(), s.n.y(), s.n.dot(Eigen::Vector2d(-s.p.y(), s.p.x())));
+    information += J * J.transpose();
+  }
+  information /= static_cast<double>(local_points.size());
+
+  // The field covers where the local points can land within the window.
+  const Eigen::Matrix2d R = Eigen::Rotation2Dd(x_WL.phi).toRotationMatrix();
+  Eigen::AlignedBox2d reach;
+  for (const Eigen::Vector2d& p : points) reach.extend(Eigen::Vector2d(x_WL.x, x_WL.y) + R * p);
+  const double margin = config.window_m + farthest * std::sin(config.window_rad) + 4.0 * r;
+  reach.min().array() -= margin;
+  reach.max().array() += margin;
+  std::vector<Eigen::Vector2d> reference;
+  for (const SampledPoint& s : sample(global, r)) {
+    if (reach.contains(s.p)) reference.push_back(s.p);
+  }
+  if (reference.empty()) return std::nullopt;
+  Eigen::AlignedBox2d region;
+  for (const Eigen::Vector2d& p : reference) region.extend(p);
+  region.min().array() -= 4.0 * r;
+  region.max().array() += 4.0 * r;
+  region = region.intersection(reach);
+
+  const int half_cells = static_cast<int>(std::floor(config.window_m / r + 1e-9));
+  int levels = 1;
+  while ((1 << (levels - 1)) < 2 * half_cells + 1) ++levels;
+  const LikelihoodField field(reference, region, r, 2.0 * r, levels);
+  CorrelativeWindow window;
+  window.linear_m = config.window_m;
+  window.angular_rad = config.window_rad;
+  window.angular_step_rad = std::min(0.05, r / std::max(farthest, r));
+  const std::optional<CorrelativeResult> search =
+      correlative_search(field, points, x_WL, window, config.min_score, config.ambiguity_ratio);
+  if (!search) return std::nullopt;
+
+  FrameRegistration out;
+  out.x_WL = search->best.x;
+  out.score = search->best.score;
+  out.prior_score = mean_likelihood(field, points, x_WL);
+  out.angular_step_rad = window.angular_step_rad;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> translation(information.topLeftCorner<2, 2>());
+  out.degenerate = translation.eigenvalues()(0) < config.min_constraint;
+  // Distinct: the points move more than two cells (RMS, across their walls).
+  const auto distinct = [&](const Pose2& a, const Pose2& b) {
+    const Pose2 d = between(a, b);
+    const Eigen::Vector3d delta(d.x, d.y, wrap_angle(d.phi));
+    return delta.dot(information * delta) > 4.0 * r * r;
+  };
+  out.ambiguous = out.prior_score >= config.ambiguity_ratio * out.score && distinct(x_WL, out.x_WL);
+  for (const CorrelativeMatch& other : search->contenders) {
+    if (distinct(out.x_WL, other.x)) out.ambiguous = true;
+  }
+  return out;
+}
+
+}  // namespace lmf::fusion

@@ -1,0 +1,78 @@
+// Registration of a local map against the nearby global map (beyond the
+// paper; docs/design.md §10, "Global association that survives drift").
+//
+// The fusion's pairing tests (§5.2-§5.3) judge each pairing in the frame L_r
+// the map predicts, with the covariance it predicts. When that prediction is
+// wrong by more than it admits (a heading a few degrees off after a long
+// drive, an overconfident chain of local maps), the right pairings fail the
+// χ² test, the few that pass may be wrong, and nothing brings the frame back.
+// The registration looks for L_r where the map's walls are, independently of
+// that covariance: points sampled along the local segments are scored against
+// a likelihood field of the global segments over a window of poses around the
+// predicted one (the correlative search of the scan matcher,
+// lmf/scan/correlative_search.hpp). What the fusion does with the result is
+// decided in fusion_steps.hpp (`register_frame`).
+//
+// Pure, thread-safe.
+#pragma once
+
+#include <optional>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "lmf/geometry/pose2.hpp"
+
+namespace lmf::fusion {
+
+struct FrameRegistrationConfig {
+  bool enabled = true;
+  // The window searched around the predicted frame: ±window_m in x and y,
+  // ±window_rad in heading.
+  double window_m = 1.5;
+  double window_rad = 0.1;
+  // Cell of the likelihood field and spacing of the sampled points (m); the
+  // field's σ is twice this. The angular step is the resolution over the
+  // farthest local point's distance from L_r.
+  double resolution_m = 0.05;
+  // A registration is used only if at least this fraction of the local map's
+  // points (likelihood-weighted mean) lie on the global map's walls ...
+  double min_score = 0.3;
+  // ... the predicted frame scores below ambiguity_ratio times the best, and
+  // no pose of the window distinct from the best (points more than two cells
+  // apart across their surfaces) scores at least ambiguity_ratio times it.
+  double ambiguity_ratio = 0.9;
+  // The walls must constrain every direction: the smallest eigenvalue of the
+  // points' mean translation information (Σ n nᵀ / N, n the wall normals:
+  // 0.5 for two perpendicular walls seen equally, 0 in a corridor) at least this.
+  double min_constraint = 0.05;
+
+  // Throws std::invalid_argument naming the first bad field.
+  void validate() const;
+};
+
+// A segment: its frame (midpoint, x along it) and length.
+struct RegistrationSegment {
+  Pose2 location;
+  double length_m = 0.0;
+};
+
+struct FrameRegistration {
+  Pose2 x_WL;                // the best pose of the window
+  double score = 0.0;        // its mean likelihood, [0, 1]
+  double prior_score = 0.0;  // the predicted frame's
+  bool ambiguous = false;    // a distinct pose, or the prediction, nearly as good
+  bool degenerate = false;   // the walls leave a direction unconstrained (min_constraint)
+  // The angular step of the search (rad): the result's resolution in heading.
+  double angular_step_rad = 0.0;
+};
+
+// The registration of `local` (segments in L) against `global` (segments in
+// W) around the predicted x_WL; nullopt when there is nothing to register
+// (no local or no nearby global points, or no pose of the window reaching
+// min_score). The config must be valid.
+std::optional<FrameRegistration> register_frame(const std::vector<RegistrationSegment>& local,
+                                                const std::vector<RegistrationSegment>& global,
+                                                const Pose2& x_WL_predicted, const FrameRegistrationConfig& config);
+
+}  // namespace lmf::fusion

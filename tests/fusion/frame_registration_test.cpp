@@ -1,0 +1,185 @@
+// Frame registration (lmf/fusion/frame_registration.hpp) and the fusion step
+// that uses it (fusion_steps.hpp, relocate_frame).
+#include "lmf/fusion/frame_registration.hpp"
+
+#include <cmath>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "fusion/synthetic_maps.hpp"
+#include "lmf/fusion/global_map.hpp"
+
+namespace lmf::fusion {
+namespace {
+
+using synthetic::Wall;
+
+std::vector<RegistrationSegment> in_world(const std::vector<Wall>& walls) {
+  std::vector<RegistrationSegment> out;
+  for (const Wall& w : walls) out.push_back({w.x_WS, w.length_m});
+  return out;
+}
+
+std::vector<RegistrationSegment> in_frame(const std::vector<Wall>& walls, const Pose2& x_WL) {
+  std::vector<RegistrationSegment> out;
+  for (const Wall& w : walls) out.push_back({between(x_WL, w.x_WS), w.length_m});
+  return out;
+}
+
+// A room with a pillar of walls off its centre: nothing repeats within the window.
+std::vector<Wall> building() {
+  std::vector<Wall> walls = synthetic::room(4.0, 0.0, 8.0, 5.0);
+  walls.push_back({Pose2(5.5, 0.8, 0.0), 1.2});
+  walls.push_back({Pose2(6.1, 1.4, M_PI / 2), 1.2});
+  return walls;
+}
+
+TEST(FrameRegistrationTest, FindsTheFrameWhereThePredictionIsOff) {
+  const std::vector<Wall> walls = building();
+  const Pose2 x_WL_true(2.0, -0.5, 0.3);
+  const Pose2 predicted = compose(x_WL_true, Pose2(0.45, -0.3, 0.06));
+  const FrameRegistrationConfig config;
+  const std::optional<FrameRegistration> reg =
+      register_frame(in_frame(walls, x_WL_true), in_world(walls), predicted, config);
+  ASSERT_TRUE(reg.has_value());
+  const Pose2 error = between(x_WL_true, reg->x_WL);
+  EXPECT_LT(std::hypot(error.x, error.y), 2.0 * config.resolution_m);
+  EXPECT_LT(std::abs(error.phi), 2.0 * reg->angular_step_rad);
+  EXPECT_GT(reg->score, 0.9);
+  EXPECT_LT(reg->prior_score, 0.5 * reg->score);
+  EXPECT_FALSE(reg->ambiguous);
+  EXPECT_FALSE(reg->degenerate);
+}
+
+TEST(FrameRegistrationTest, APredictionThatIsRightStaysWithinAStep) {
+  const std::vector<Wall> walls = building();
+  const Pose2 x_WL(1.0, 1.0, -0.2);
+  const std::optional<FrameRegistration> reg =
+      register_frame(in_frame(walls, x_WL), in_world(walls), x_WL, FrameRegistrationConfig{});
+  ASSERT_TRUE(reg.has_value());
+  const Pose2 error = between(x_WL, reg->x_WL);
+  EXPECT_LE(std::hypot(error.x, error.y), 0.05 + 1e-9);
+  EXPECT_LE(std::abs(error.phi), reg->angular_step_rad + 1e-9);
+  EXPECT_FALSE(reg->ambiguous);
+}
+
+TEST(FrameRegistrationTest, ACorridorIsDegenerate) {
+  // Two long parallel walls: nothing fixes the position along them.
+  const std::vector<Wall> walls = {{Pose2(0.0, -1.0, 0.0), 30.0}, {Pose2(0.0, 1.0, M_PI), 30.0}};
+  const std::vector<Wall> seen = {{Pose2(0.0, -1.0, 0.0), 8.0}, {Pose2(0.0, 1.0, M_PI), 8.0}};
+  const Pose2 x_WL(0.0, 0.0, 0.0);
+  const std::optional<FrameRegistration> reg =
+      register_frame(in_frame(seen, x_WL), in_world(walls), compose(x_WL, Pose2(0.5, 0.3, 0.0)), FrameRegistrationConfig{});
+  ASSERT_TRUE(reg.has_value());
+  EXPECT_TRUE(reg->degenerate);
+  EXPECT_NEAR(reg->x_WL.y, 0.0, 0.05 + 1e-9);  // across the corridor it is found
+}
+
+TEST(FrameRegistrationTest, APeriodicSceneIsAmbiguous) {
+  // A comb: a long base wall and teeth every metre; the local map sees three
+  // teeth and the base, which fit equally one period to either side.
+  std::vector<Wall> walls = {{Pose2(0.0, 0.0, 0.0), 20.0}};
+  for (int i = -9; i <= 9; ++i) walls.push_back({Pose2(i * 1.0, 0.6, M_PI / 2), 1.2});
+  std::vector<Wall> seen = {{Pose2(0.0, 0.0, 0.0), 2.6}};
+  for (int i = -1; i <= 1; ++i) seen.push_back({Pose2(i * 1.0, 0.6, M_PI / 2), 1.2});
+  const Pose2 x_WL(0.0, 0.0, 0.0);
+  const std::optional<FrameRegistration> reg =
+      register_frame(in_frame(seen, x_WL), in_world(walls), compose(x_WL, Pose2(0.5, 0.1, 0.0)), FrameRegistrationConfig{});
+  ASSERT_TRUE(reg.has_value());
+  EXPECT_TRUE(reg->ambiguous);
+}
+
+TEST(FrameRegistrationTest, NothingToRegisterAgainst) {
+  const std::vector<Wall> walls = building();
+  const Pose2 x_WL(2.0, -0.5, 0.3);
+  EXPECT_FALSE(register_frame(in_frame(walls, x_WL), {}, x_WL, FrameRegistrationConfig{}).has_value());
+  // Walls far beyond the window.
+  std::vector<Wall> far = walls;
+  for (Wall& w : far) w.x_WS.x += 100.0;
+  EXPECT_FALSE(register_frame(in_frame(walls, x_WL), in_world(far), x_WL, FrameRegistrationConfig{}).has_value());
+  EXPECT_FALSE(register_frame({}, in_world(walls), x_WL, FrameRegistrationConfig{}).has_value());
+}
+
+TEST(FrameRegistrationTest, ConfigValidation) {
+  FrameRegistrationConfig c;
+  EXPECT_NO_THROW(c.validate());
+  c.resolution_m = 0.0;
+  EXPECT_THROW(c.validate(), std::invalid_argument);
+  c = {};
+  c.min_score = 1.0;
+  EXPECT_THROW(c.validate(), std::invalid_argument);
+  c = {};
+  c.ambiguity_ratio = 0.0;
+  EXPECT_THROW(c.validate(), std::invalid_argument);
+  c = {};
+  c.window_m = -1.0;
+  EXPECT_THROW(c.validate(), std::invalid_argument);
+  GlobalMapConfig g;
+  g.registration.window_rad = std::nan("");
+  EXPECT_THROW(g.validate(), std::invalid_argument);
+}
+
+// The fusion: the first local map ends with a pose that is 0.3 m and 2.3° off
+// while its covariance claims a centimetre. The second map's walls, seen from
+// the true pose, then fail the χ² test from the predicted frame.
+struct OverconfidentRevisit {
+  std::vector<Wall> walls = building();
+  Pose2 x_L0R_true = Pose2(2.0, 0.5, 0.3);
+  Pose2 x_L0R_claimed = compose(Pose2(2.0, 0.5, 0.3), Pose2(0.3, -0.2, 0.04));
+  synthetic::Noise tight{0.01, 0.002, 0.005, 0.002, 0.5};
+
+  std::vector<FusionReport> run(GlobalMap& map) const {
+    map.fuse(synthetic::make_snapshot(0, 0, Pose2(), x_L0R_claimed, walls, tight));
+    return map.fuse(synthetic::make_snapshot(0, 1, x_L0R_true, Pose2(1.0, -0.5, -0.2), walls, tight));
+  }
+};
+
+TEST(FrameRegistrationTest, AnOverconfidentFrameIsRelocatedAndTheWallsPair) {
+  const OverconfidentRevisit revisit;
+  GlobalMapConfig config;
+  config.health = HealthCheck::kFullEigen;
+  GlobalMap map(config);
+  const std::vector<FusionReport> reports = revisit.run(map);
+  ASSERT_EQ(reports.size(), 1u);
+  const FusionReport& r = reports[0];
+  EXPECT_EQ(r.registration, RegistrationOutcome::kRelocated);
+  EXPECT_GT(r.registration_distance2, 50.0);
+  EXPECT_NEAR(r.registration_offset.x, -0.3, 0.1);
+  EXPECT_NEAR(r.registration_offset.y, 0.2, 0.1);
+  EXPECT_EQ(r.pairings_accepted, static_cast<int>(revisit.walls.size()));
+  EXPECT_EQ(r.new_segments, 0);
+  EXPECT_TRUE(r.covariance_ok());
+  // The robot's frame now lies where the walls say (within the registration's steps).
+  const Pose2 x_WL_true = compose(revisit.x_L0R_true, Pose2(1.0, -0.5, -0.2));
+  const Pose2 error = between(x_WL_true, map.corrected_frame(0)->x_WL);
+  EXPECT_LT(std::hypot(error.x, error.y), 0.1);
+  EXPECT_LT(std::abs(error.phi), 0.01);
+  EXPECT_EQ(map.counts().segments, static_cast<int>(revisit.walls.size()));
+}
+
+TEST(FrameRegistrationTest, WithoutRegistrationTheSameRevisitDoublesTheWalls) {
+  const OverconfidentRevisit revisit;
+  GlobalMapConfig config;
+  config.registration.enabled = false;
+  GlobalMap map(config);
+  const std::vector<FusionReport> reports = revisit.run(map);
+  ASSERT_EQ(reports.size(), 1u);
+  EXPECT_EQ(reports[0].registration, RegistrationOutcome::kNotRun);
+  EXPECT_LT(reports[0].pairings_accepted, static_cast<int>(revisit.walls.size()));
+  EXPECT_GT(map.counts().segments, static_cast<int>(revisit.walls.size()));
+}
+
+TEST(FrameRegistrationTest, AConsistentRevisitIsLeftAlone) {
+  const OverconfidentRevisit revisit;
+  GlobalMap map{GlobalMapConfig{}};
+  map.fuse(synthetic::make_snapshot(0, 0, Pose2(), revisit.x_L0R_true, revisit.walls, revisit.tight));
+  const std::vector<FusionReport> reports =
+      map.fuse(synthetic::make_snapshot(0, 1, revisit.x_L0R_true, Pose2(1.0, -0.5, -0.2), revisit.walls, revisit.tight));
+  ASSERT_EQ(reports.size(), 1u);
+  EXPECT_EQ(reports[0].registration, RegistrationOutcome::kAgrees);
+  EXPECT_EQ(reports[0].pairings_accepted, static_cast<int>(revisit.walls.size()));
+}
+
+}  // namespace
+}  // namespace lmf::fusion
