@@ -108,6 +108,10 @@ bool parse(int argc, char** argv, Options& o) {
       ("people", po::value(&c.people.count)->default_value(c.people.count, text(c.people.count)),
        "people walking in the corridors (clutter in the scans); 0 = none (the default)")
       ("hide-robots", po::bool_switch(), "robots do not appear in each other's scans (they do by default)")
+      ("robot-gap-m", po::value(&c.robot_gap_m)->default_value(c.robot_gap_m, text(c.robot_gap_m)),
+       "a robot waits rather than come closer than this (m, body to body) to another one; 0 = robots drive through each other")
+      ("max-wait-s", po::value(&c.max_wait_s)->default_value(c.max_wait_s, text(c.max_wait_s)),
+       "longest wait for another robot (s); then it drives on regardless (robots meeting head-on)")
       ("sighting-range-m", po::value(&c.sightings.max_range_m)->default_value(c.sightings.max_range_m, text(c.sightings.max_range_m)),
        "a robot is seen within this distance")
       ("sighting-interval-s", po::value(&c.sightings.min_interval_s)->default_value(c.sightings.min_interval_s, text(c.sightings.min_interval_s)),

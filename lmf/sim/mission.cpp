@@ -52,6 +52,8 @@ void MissionConfig::validate() const {
   require(scan_rate_hz > 0.0 && scan_rate_hz <= 100.0, "scan_rate_hz must be in (0, 100]");
   require(std::isfinite(start_time_s) && start_time_s >= 0.0, "start_time_s must be finite and >= 0");
   require(robot_radius_m >= 0.0 && robot_radius_m <= 1.0, "robot_radius_m must be in [0, 1]");
+  require(std::isfinite(robot_gap_m) && robot_gap_m >= 0.0 && robot_gap_m <= 2.0, "robot_gap_m must be in [0, 2]");
+  require(std::isfinite(max_wait_s) && max_wait_s >= 0.0, "max_wait_s must be finite and >= 0");
   require(sightings.max_range_m > 0.0, "sightings.max_range_m must be positive");
   require(sightings.field_of_view_rad > 0.0 && sightings.field_of_view_rad <= 2.0 * std::numbers::pi,
           "sightings.field_of_view_rad must be in (0, 2 pi]");
@@ -86,6 +88,55 @@ bool robot_visible(const WallIndex& walls, const Pose2& x_WA, const Pose2& x_WB,
   return !walls.blocks({x_WA.x, x_WA.y}, {x_WB.x, x_WB.y});
 }
 
+namespace {
+
+// Each robot's true pose at every scan time (MissionConfig::robot_gap_m): in
+// robot order per step, a robot advances its route by one period unless that
+// brings it, closer than it is, within two radii plus the gap of another
+// robot's pose (this step's for the robots already moved, the last step's for
+// the others); then it waits. Behind a robot heading away it waits as long as
+// it takes; for one facing it (meeting head-on, where neither can give way on
+// its route) at most max_wait_s in a row, then it drives on regardless.
+void drive_routes(const MissionConfig& config, std::size_t scans, double period, std::vector<RobotRun>& robots) {
+  const double keep = 2.0 * config.robot_radius_m + config.robot_gap_m;
+  std::vector<double> waited(robots.size(), 0.0);
+  for (RobotRun& run : robots) {
+    run.route_times.assign(1, 0.0);
+    run.true_poses.assign(1, run.trajectory.pose_at(0.0));
+  }
+  const auto distance = [](const Pose2& a, const Pose2& b) { return std::hypot(a.x - b.x, a.y - b.y); };
+  for (std::size_t k = 1; k < scans; ++k) {
+    for (std::size_t i = 0; i < robots.size(); ++i) {
+      RobotRun& run = robots[i];
+      const Pose2& now = run.true_poses.back();
+      const double tau = run.route_times.back() + period;
+      const Pose2 next = run.trajectory.pose_at(tau);
+      bool blocked = false;
+      bool head_on = false;
+      for (std::size_t j = 0; j < robots.size() && config.robot_gap_m > 0.0; ++j) {
+        if (j == i) continue;
+        const Pose2& other = robots[j].true_poses.back();  // step k if j < i, else k - 1
+        if (distance(next, other) >= keep || distance(next, other) >= distance(now, other)) continue;
+        blocked = true;
+        const bool facing = std::cos(other.phi) * (now.x - other.x) + std::sin(other.phi) * (now.y - other.y) > 0.0;
+        head_on = head_on || facing;
+      }
+      const bool wait = blocked && (!head_on || waited[i] < config.max_wait_s - 1e-9);
+      if (wait) {
+        waited[i] += period;
+        run.route_times.push_back(run.route_times.back());
+        run.true_poses.push_back(now);
+      } else {
+        if (!blocked) waited[i] = 0.0;  // after a timeout: on regardless until clear
+        run.route_times.push_back(tau);
+        run.true_poses.push_back(next);
+      }
+    }
+  }
+}
+
+}  // namespace
+
 Mission simulate_mission(const MissionConfig& config) {
   config.validate();
   Mission mission;
@@ -118,6 +169,7 @@ Mission simulate_mission(const MissionConfig& config) {
     scan_times.push_back(t);
   }
   const std::vector<std::vector<double>> times(n, scan_times);
+  drive_routes(config, scan_times.size(), period, mission.robots);
 
   for (std::size_t i = 0; i < n; ++i) {
     RobotRun& run = mission.robots[i];
@@ -126,14 +178,15 @@ Mission simulate_mission(const MissionConfig& config) {
                            derive_seed(config.seed, kOdometryStream + i));
     run.odometry_errors = odometry.errors();
     Pose2 x_OR;
+    Pose2 x_WR_previous;
     for (std::size_t k = 0; k < times[i].size(); ++k) {
       const double t = times[i][k];
-      const Pose2 x_WR = run.trajectory.pose_at(t);
+      const Pose2 x_WR = run.true_poses[k];
       std::vector<Circle> discs;
       if (config.robots_visible_in_scans && config.robot_radius_m > 0.0) {
         for (std::size_t j = 0; j < n; ++j) {
           if (j == i) continue;
-          const Pose2 x_WB = mission.robots[j].trajectory.pose_at(t);
+          const Pose2& x_WB = mission.robots[j].true_poses[k];
           discs.push_back({{x_WB.x, x_WB.y}, config.robot_radius_m});
         }
       }
@@ -144,7 +197,7 @@ Mission simulate_mission(const MissionConfig& config) {
       if (k == 0) {
         x_OR = x_WR;  // the odometry frame starts at the true start pose
       } else {
-        const Pose2 u = between(run.true_poses.back(), x_WR);
+        const Pose2 u = between(x_WR_previous, x_WR);
         const Pose2 x_OR_next = compose(x_OR, odometry.increment(u));
         run.distance_m += std::hypot(u.x, u.y);
         run.odometry_distance_m += std::hypot(x_OR_next.x - x_OR.x, x_OR_next.y - x_OR.y);
@@ -152,7 +205,7 @@ Mission simulate_mission(const MissionConfig& config) {
       }
       scan.odometry = x_OR;
       run.scans.push_back(std::move(scan));
-      run.true_poses.push_back(x_WR);
+      x_WR_previous = x_WR;
     }
   }
 
@@ -167,7 +220,7 @@ Mission simulate_mission(const MissionConfig& config) {
         const auto key = std::make_pair(static_cast<int>(a), static_cast<int>(b));
         const auto it = last.find(key);
         if (it != last.end() && t - it->second < config.sightings.min_interval_s) continue;
-        const Pose2 x_WB = mission.robots[b].trajectory.pose_at(t);
+        const Pose2& x_WB = mission.robots[b].true_poses[k];
         if (!robot_visible(walls, x_WA, x_WB, config.sightings)) continue;
         last[key] = t;
         Sighting s;

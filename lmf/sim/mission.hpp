@@ -45,6 +45,14 @@ struct MissionConfig {
   double start_time_s = 0.0;           // time of robot 0's first scan
   double robot_radius_m = 0.25;        // robots appear to each other's lasers as discs of this radius
   bool robots_visible_in_scans = true;
+  // Robots keep their distance: a robot whose next step along its route would
+  // bring its body within robot_gap_m of another robot's, closer than it is now,
+  // waits (the route's time stands still) until the way is clear, at most
+  // max_wait_s at a time; then it goes on regardless (two robots meeting head-on
+  // in a corridor pass through each other, as without the rule). robot_gap_m = 0
+  // turns it off (every robot drives its route on the clock, through the others).
+  double robot_gap_m = 0.3;            // in [0, 2]
+  double max_wait_s = 10.0;            // >= 0
   WorldConfig world;
   LaserConfig laser;
   MotionConfig motion;
@@ -61,7 +69,8 @@ struct RobotRun {
   int id = 0;
   std::vector<LaserScan> scans;  // LaserScan::odometry is the noisy odometry pose x_OR
   std::vector<Pose2> true_poses; // x_WR at each scan's time (same index as scans)
-  Trajectory trajectory;         // the continuous true motion; time 0 = start_time_s
+  Trajectory trajectory;         // the route's continuous motion, on the route's own time
+  std::vector<double> route_times;  // the route's time at each scan (behind the scan's while it waited)
   double distance_m = 0.0;       // true distance travelled over the scans
   double odometry_distance_m = 0.0;  // the same from the odometry poses
   RealOdometryErrors odometry_errors;  // its systematic odometry errors (identity under kProportional)

@@ -113,6 +113,8 @@ json config_json(const MissionConfig& c) {
       {"start_time_s", fixed(c.start_time_s)},
       {"robot_radius_m", fixed(c.robot_radius_m)},
       {"robots_visible_in_scans", c.robots_visible_in_scans},
+      {"robot_gap_m", fixed(c.robot_gap_m)},
+      {"max_wait_s", fixed(c.max_wait_s)},
       {"world",
        {{"ring_length_m", fixed(c.world.ring_length_m)},
         {"ring_width_m", fixed(c.world.ring_width_m)},

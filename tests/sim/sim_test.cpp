@@ -454,6 +454,68 @@ TEST(Mission, PeopleAndRobotsShowUpAsClutter) {
   EXPECT_NEAR(empty.robots[0].scans[0].ranges_m[180], 5.0 - config.robot_radius_m, 1e-9);
 }
 
+// Scan steps at which two robots' bodies overlap, and at which one heading
+// the same way as another (within 45°: following it) closes in on it within
+// the gap.
+struct Encounters {
+  int overlapping = 0;
+  int following_closer_than_gap = 0;
+};
+
+Encounters encounters(const Mission& m) {
+  Encounters e;
+  const double r = m.config.robot_radius_m;
+  for (std::size_t i = 0; i < m.robots.size(); ++i) {
+    for (std::size_t j = i + 1; j < m.robots.size(); ++j) {
+      for (std::size_t k = 1; k < m.robots[i].true_poses.size(); ++k) {
+        const Pose2& a = m.robots[i].true_poses[k];
+        const Pose2& b = m.robots[j].true_poses[k];
+        const Pose2& a0 = m.robots[i].true_poses[k - 1];
+        const Pose2& b0 = m.robots[j].true_poses[k - 1];
+        const double d = std::hypot(a.x - b.x, a.y - b.y);
+        const double d0 = std::hypot(a0.x - b0.x, a0.y - b0.y);
+        if (d < 2.0 * r) ++e.overlapping;
+        if (d < 2.0 * r + m.config.robot_gap_m - 1e-9 && d < d0 - 1e-9 &&
+            std::cos(wrap_angle(a.phi - b.phi)) > std::cos(M_PI / 4)) {
+          ++e.following_closer_than_gap;
+        }
+      }
+    }
+  }
+  return e;
+}
+
+TEST(Mission, RobotsWaitRatherThanDriveIntoEachOther) {
+  MissionConfig config = short_mission(4, 900.0, 8);
+  config.robot_gap_m = 0.0;
+  const Mission through = simulate_mission(config);
+  const Encounters before = encounters(through);
+  ASSERT_GT(before.overlapping, 0) << "precondition: on the clock, some robots drive through each other";
+  ASSERT_GT(before.following_closer_than_gap, 0) << "precondition: ... and into the one ahead";
+  config.robot_gap_m = MissionConfig{}.robot_gap_m;
+  const Mission careful = simulate_mission(config);
+  const Encounters after = encounters(careful);
+  // Robots following each other always keep the gap; what overlaps is left
+  // to robots meeting head-on, which wait max_wait_s and then pass.
+  EXPECT_EQ(after.following_closer_than_gap, 0);
+  EXPECT_LT(after.overlapping, before.overlapping);
+  // A waiting robot stands still on its route: same pose, same route time.
+  int waits = 0;
+  for (const RobotRun& run : careful.robots) {
+    ASSERT_EQ(run.route_times.size(), run.true_poses.size());
+    for (std::size_t k = 1; k < run.route_times.size(); ++k) {
+      ASSERT_GE(run.route_times[k], run.route_times[k - 1]);
+      if (run.route_times[k] == run.route_times[k - 1]) {
+        ++waits;
+        EXPECT_TRUE(is_near(run.true_poses[k], run.true_poses[k - 1], 0.0, 0.0));
+      } else {
+        EXPECT_TRUE(is_near(run.true_poses[k], run.trajectory.pose_at(run.route_times[k]), 0.0, 0.0));
+      }
+    }
+  }
+  EXPECT_GT(waits, 0);
+}
+
 TEST(Mission, BadConfigThrows) {
   MissionConfig config;
   config.num_robots = 0;
@@ -464,6 +526,12 @@ TEST(Mission, BadConfigThrows) {
   config = MissionConfig{};
   config.motion.wall_margin_m = 0.5;
   config.world.door_width_m = 0.8;
+  EXPECT_THROW(simulate_mission(config), std::invalid_argument);
+  config = MissionConfig{};
+  config.robot_gap_m = -0.1;
+  EXPECT_THROW(simulate_mission(config), std::invalid_argument);
+  config = MissionConfig{};
+  config.max_wait_s = std::nan("");
   EXPECT_THROW(simulate_mission(config), std::invalid_argument);
 }
 
