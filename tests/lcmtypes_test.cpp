@@ -9,7 +9,7 @@
 namespace {
 
 TEST(LcmTypes, LocalMapRoundTrips) {
-  lmf::local_map_t msg;
+  lmf::local_map_t msg{};  // value-initialised: every count (num_scan_poses, ...) starts at 0
   msg.utime = 123456789;
   msg.robot_id = 2;
   msg.seq = 7;
