@@ -23,6 +23,7 @@ void FrameRegistrationConfig::validate() const {
           "ambiguity_ratio must be in (0, 1]");
   require(std::isfinite(min_constraint) && min_constraint >= 0.0 && min_constraint <= 1.0,
           "min_constraint must be in [0, 1]");
+  require(own_recent_maps >= 0, "own_recent_maps must be >= 0");
 }
 
 namespace {
@@ -113,15 +114,36 @@ std::optional<FrameRegistration> register_frame(const std::vector<RegistrationSe
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> translation(information.topLeftCorner<2, 2>());
   out.degenerate = translation.eigenvalues()(0) < config.min_constraint;
   // Distinct: the points move more than two cells (RMS, across their walls).
-  const auto distinct = [&](const Pose2& a, const Pose2& b) {
+  const double separation2 = 4.0 * r * r;
+  const auto offset = [](const Pose2& a, const Pose2& b) {
     const Pose2 d = between(a, b);
-    const Eigen::Vector3d delta(d.x, d.y, wrap_angle(d.phi));
-    return delta.dot(information * delta) > 4.0 * r * r;
+    return Eigen::Vector3d(d.x, d.y, wrap_angle(d.phi));
   };
-  out.ambiguous = out.prior_score >= config.ambiguity_ratio * out.score && distinct(x_WL, out.x_WL);
+  const auto spread2 = [&](const Eigen::Vector3d& d) { return d.dot(information * d); };
+  // The contenders distinct from the best; when they all lie along one
+  // direction u (what is left of each after removing its u part is not
+  // distinct), the walls fix the frame but for u: a corridor with a few doors.
+  std::vector<Eigen::Vector3d> rivals;
   for (const CorrelativeMatch& other : search->contenders) {
-    if (distinct(out.x_WL, other.x)) out.ambiguous = true;
+    const Eigen::Vector3d d = offset(out.x_WL, other.x);
+    if (spread2(d) > separation2) rivals.push_back(d);
   }
+  const auto across = [&](const Eigen::Vector3d& d, const Eigen::Vector3d& u) {
+    return Eigen::Vector3d(d - u * (u.dot(information * d) / u.dot(information * u)));
+  };
+  if (!rivals.empty()) {
+    const Eigen::Vector3d u = *std::max_element(rivals.begin(), rivals.end(), [&](const auto& a, const auto& b) {
+      return spread2(a) < spread2(b);
+    });
+    out.unresolved = u.normalized();
+    for (const Eigen::Vector3d& d : rivals) {
+      if (spread2(across(d, u)) > separation2) out.ambiguous = true;
+    }
+  }
+  Eigen::Vector3d from_prior = offset(out.x_WL, x_WL);
+  if (out.unresolved) from_prior = across(from_prior, *out.unresolved);
+  if (out.prior_score >= config.ambiguity_ratio * out.score && spread2(from_prior) > separation2) out.ambiguous = true;
+  if (out.ambiguous) out.unresolved.reset();
   return out;
 }
 

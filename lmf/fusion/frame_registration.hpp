@@ -38,14 +38,17 @@ struct FrameRegistrationConfig {
   // A registration is used only if at least this fraction of the local map's
   // points (likelihood-weighted mean) lie on the global map's walls ...
   double min_score = 0.3;
-  // ... the predicted frame scores below ambiguity_ratio times the best, and
-  // no pose of the window distinct from the best (points more than two cells
-  // apart across their surfaces) scores at least ambiguity_ratio times it.
+  // ... and it is not ambiguous (FrameRegistration::ambiguous).
   double ambiguity_ratio = 0.9;
   // The walls must constrain every direction: the smallest eigenvalue of the
   // points' mean translation information (Σ n nᵀ / N, n the wall normals:
   // 0.5 for two perpendicular walls seen equally, 0 in a corridor) at least this.
   double min_constraint = 0.05;
+  // The robot's own submaps made from its last this many local maps are left
+  // out of the reference: they were placed from the same chain of frames, so
+  // they drifted with the frame and cannot tell it is off (they would make
+  // the predicted frame score as well as the right one).
+  int own_recent_maps = 3;
 
   // Throws std::invalid_argument naming the first bad field.
   void validate() const;
@@ -61,7 +64,15 @@ struct FrameRegistration {
   Pose2 x_WL;                // the best pose of the window
   double score = 0.0;        // its mean likelihood, [0, 1]
   double prior_score = 0.0;  // the predicted frame's
-  bool ambiguous = false;    // a distinct pose, or the prediction, nearly as good
+  // Another pose of the window nearly as good (at least ambiguity_ratio times
+  // the best) whose points lie more than two cells from the best's across
+  // their walls, or the prediction nearly as good, and not all along one
+  // direction (below).
+  bool ambiguous = false;
+  // When every such pose lies along one direction from the best (x, y, φ in
+  // the best pose's frame; unit length): the walls fix the frame but along it
+  // (a corridor with a few doors); the registration says nothing along it.
+  std::optional<Eigen::Vector3d> unresolved;
   bool degenerate = false;   // the walls leave a direction unconstrained (min_constraint)
   // The angular step of the search (rad): the result's resolution in heading.
   double angular_step_rad = 0.0;

@@ -105,8 +105,11 @@ void augment(FusionContext& f);
 // neither ambiguous nor degenerate, L_r moves there (its children with it)
 // and its covariance grows by the move, diag(δ_x², δ_y², δ_φ²): the
 // prediction was overconfident by that much, and the pairing tests then judge
-// the pairings from the registered frame. Otherwise nothing changes.
-void relocate_frame(FusionContext& f);
+// the pairings from the registered frame. Otherwise nothing changes. Where
+// the walls leave one direction u open (FrameRegistration::unresolved), δ
+// keeps the prediction along u. The robot's own recent submaps (`graph`,
+// own_recent_maps) are not registered against.
+void relocate_frame(FusionContext& f, const EnvironmentGraph& graph);
 
 // Step 2: the geometric gate between every global segment (outside L_r) and
 // every local segment; fills `gated` and the report's funnel counts.

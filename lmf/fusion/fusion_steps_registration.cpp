@@ -1,5 +1,6 @@
 // The frame registration step of the fusion (fusion_steps.hpp, relocate_frame).
 #include <cmath>
+#include <unordered_set>
 
 #include <Eigen/Cholesky>
 
@@ -7,7 +8,7 @@
 
 namespace lmf::fusion {
 
-void relocate_frame(FusionContext& f) {
+void relocate_frame(FusionContext& f, const EnvironmentGraph& graph) {
   const FrameRegistrationConfig& config = f.config.registration;
   if (!config.enabled || f.anchored()) return;
   GlobalState& state = f.state;
@@ -21,9 +22,15 @@ void relocate_frame(FusionContext& f) {
   }
   const Pose2 x_WL = state.root_location(f.L);
   const double reach = extent + config.window_m;
+  // The robot's own recent submaps moved with its frame (FrameRegistrationConfig::own_recent_maps).
+  std::unordered_set<EntityId> recent_own;
+  for (const SubmapRecord& submap : graph.submaps()) {
+    if (submap.robot_id == f.robot_id && submap.seq >= s.seq - config.own_recent_maps) recent_own.insert(submap.frame);
+  }
   std::vector<RegistrationSegment> global;
   for (const Entity& e : state.entities()) {
     if (e.kind != EntityKind::kSegment || e.parent == f.L) continue;
+    if (e.parent && recent_own.count(*e.parent) != 0) continue;
     const Pose2 x_WS = state.root_location(e.id);
     if (std::hypot(x_WS.x - x_WL.x, x_WS.y - x_WL.y) > reach + 0.5 * e.length_m) continue;
     global.push_back({x_WS, e.length_m});
@@ -35,12 +42,22 @@ void relocate_frame(FusionContext& f) {
     return;
   }
   const Pose2 d = between(x_WL, reg->x_WL);  // in L_r's own frame, as its perturbation
-  const Eigen::Vector3d delta(d.x, d.y, wrap_angle(d.phi));
+  Eigen::Vector3d delta(d.x, d.y, wrap_angle(d.phi));
   const double r = config.resolution_m;
   const Eigen::Matrix3d C =
       state.block(f.L, f.L) + Eigen::Vector3d(r * r, r * r, reg->angular_step_rad * reg->angular_step_rad).asDiagonal().toDenseMatrix();
-  report.registration_offset = d;
-  report.registration_distance2 = delta.dot(C.ldlt().solve(delta));
+  const Eigen::LDLT<Eigen::Matrix3d> C_ldlt(C);
+  if (reg->unresolved) {
+    // The walls say nothing along u: keep the prediction there, i.e. the
+    // offset nearest to zero in C's metric among those the walls fix,
+    // δ ← δ − u (uᵀC⁻¹δ)/(uᵀC⁻¹u).
+    const Eigen::Vector3d& u = *reg->unresolved;
+    const Eigen::Vector3d Wu = C_ldlt.solve(u);
+    delta -= u * (Wu.dot(delta) / Wu.dot(u));
+    report.registration_unresolved = true;
+  }
+  report.registration_offset = Pose2(delta.x(), delta.y(), delta.z());
+  report.registration_distance2 = delta.dot(C_ldlt.solve(delta));
   report.registration_score = reg->score;
   if (report.registration_distance2 <= f.chi2(3)) {
     report.registration = RegistrationOutcome::kAgrees;
@@ -51,7 +68,7 @@ void relocate_frame(FusionContext& f) {
   } else {
     report.registration = RegistrationOutcome::kRelocated;
     Entity& frame = state.mutable_entity(f.L);
-    frame.location = compose(frame.location, d);
+    frame.location = compose(frame.location, report.registration_offset);
     state.add_to_block(f.L, delta.cwiseAbs2().asDiagonal().toDenseMatrix());
   }
 }

@@ -223,6 +223,7 @@ struct FusionReport {
   Pose2 registration_offset;
   double registration_distance2 = 0.0;
   double registration_score = 0.0;
+  bool registration_unresolved = false;  // the walls left one direction open; the offset is across it
 
   // Pairing funnel: pairs considered = global segments x local segments.
   std::int64_t pairs_considered = 0;

@@ -85,7 +85,7 @@ class GlobalMapArchive {
 //               u8 first_robot_defines_world, u8 health, i32 frame_history_per_robot,
 //               f64 footprint_radius_m, f64 crossing_margin_m, f64 crossing_max_angle_rad,
 //               registration: u8 enabled, 6 f64 (window_m, window_rad, resolution_m,
-//               min_score, ambiguity_ratio, min_constraint)
+//               min_score, ambiguity_ratio, min_constraint), i32 own_recent_maps
 //   state       i64 next_id, i64 n, i64 capacity, u64 count + entities
 //               (i64 id, u8 kind, pose, f64 length, u8 has_parent, i64 parent,
 //               i64 offset), then P's lower triangle by columns (column j:
@@ -117,6 +117,7 @@ void GlobalMapArchive::write_config(ArchiveWriter& w, const GlobalMapConfig& c) 
   for (const double v : {g.window_m, g.window_rad, g.resolution_m, g.min_score, g.ambiguity_ratio, g.min_constraint}) {
     w.f64(v);
   }
+  w.i32(g.own_recent_maps);
 }
 
 GlobalMapConfig GlobalMapArchive::read_config(ArchiveReader& r) {
@@ -139,6 +140,7 @@ GlobalMapConfig GlobalMapArchive::read_config(ArchiveReader& r) {
   for (double* v : {&g.window_m, &g.window_rad, &g.resolution_m, &g.min_score, &g.ambiguity_ratio, &g.min_constraint}) {
     *v = r.f64();
   }
+  g.own_recent_maps = r.i32();
   try {
     c.validate();
   } catch (const std::invalid_argument& e) {
@@ -418,6 +420,7 @@ void write_fusion_report(ArchiveWriter& w, const FusionReport& f) {
   w.pose(f.registration_offset);
   w.f64(f.registration_distance2);
   w.f64(f.registration_score);
+  w.boolean(f.registration_unresolved);
   w.i64(f.pairs_considered);
   w.i64(f.gate_rejected);
   for (const int v : {f.chi2_rejected, f.overlap_rejected, f.jc_candidates, f.jc_rejected, f.pairings_accepted,
@@ -461,6 +464,7 @@ FusionReport read_fusion_report(ArchiveReader& r) {
   f.registration_offset = r.pose();
   f.registration_distance2 = r.f64();
   f.registration_score = r.f64();
+  f.registration_unresolved = r.boolean();
   f.pairs_considered = r.i64();
   f.gate_rejected = r.i64();
   for (int* v : {&f.chi2_rejected, &f.overlap_rejected, &f.jc_candidates, &f.jc_rejected, &f.pairings_accepted,

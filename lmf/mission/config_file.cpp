@@ -34,6 +34,7 @@ void read_config(io::JsonReader& r, fusion::GlobalMapConfig& c) {
     g->read("min_score", c.registration.min_score);
     g->read("ambiguity_ratio", c.registration.ambiguity_ratio);
     g->read("min_constraint", c.registration.min_constraint);
+    g->read("own_recent_maps", c.registration.own_recent_maps);
   }
 }
 

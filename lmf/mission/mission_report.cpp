@@ -103,6 +103,7 @@ json fusion_report_json(const fusion::FusionReport& r) {
             {"registration_offset", {r.registration_offset.x, r.registration_offset.y, r.registration_offset.phi}},
             {"registration_distance2", r.registration_distance2},
             {"registration_score", r.registration_score},
+            {"registration_unresolved", r.registration_unresolved},
             {"pairs_considered", r.pairs_considered},
             {"gate_rejected", r.gate_rejected},
             {"chi2_rejected", r.chi2_rejected},

@@ -76,9 +76,10 @@ TEST(FrameRegistrationTest, ACorridorIsDegenerate) {
   EXPECT_NEAR(reg->x_WL.y, 0.0, 0.05 + 1e-9);  // across the corridor it is found
 }
 
-TEST(FrameRegistrationTest, APeriodicSceneIsAmbiguous) {
+TEST(FrameRegistrationTest, APeriodicCombLeavesItsAxisUnresolved) {
   // A comb: a long base wall and teeth every metre; the local map sees three
-  // teeth and the base, which fit equally one period to either side.
+  // teeth and the base, which fit equally one period to either side: the
+  // walls fix y and the heading, not x.
   std::vector<Wall> walls = {{Pose2(0.0, 0.0, 0.0), 20.0}};
   for (int i = -9; i <= 9; ++i) walls.push_back({Pose2(i * 1.0, 0.6, M_PI / 2), 1.2});
   std::vector<Wall> seen = {{Pose2(0.0, 0.0, 0.0), 2.6}};
@@ -87,7 +88,37 @@ TEST(FrameRegistrationTest, APeriodicSceneIsAmbiguous) {
   const std::optional<FrameRegistration> reg =
       register_frame(in_frame(seen, x_WL), in_world(walls), compose(x_WL, Pose2(0.5, 0.1, 0.0)), FrameRegistrationConfig{});
   ASSERT_TRUE(reg.has_value());
+  EXPECT_FALSE(reg->ambiguous);
+  ASSERT_TRUE(reg->unresolved.has_value());
+  EXPECT_GT(std::abs(reg->unresolved->x()), 0.99);
+  EXPECT_NEAR(reg->x_WL.y, 0.0, 0.05 + 1e-9);
+  EXPECT_NEAR(reg->x_WL.phi, 0.0, reg->angular_step_rad + 1e-9);
+}
+
+TEST(FrameRegistrationTest, AGridOfPillarsIsAmbiguous) {
+  // Square pillars every metre in x and y: the local map's 2 x 2 of them fit
+  // one period off in either direction.
+  std::vector<Wall> walls;
+  const auto pillar = [](double x, double y) {
+    return synthetic::room(x, y, 0.3, 0.3);
+  };
+  for (int i = -4; i <= 4; ++i) {
+    for (int j = -4; j <= 4; ++j) {
+      for (const Wall& w : pillar(i, j)) walls.push_back(w);
+    }
+  }
+  std::vector<Wall> seen;
+  for (int i = 0; i <= 1; ++i) {
+    for (int j = 0; j <= 1; ++j) {
+      for (const Wall& w : pillar(i, j)) seen.push_back(w);
+    }
+  }
+  const Pose2 x_WL(0.0, 0.0, 0.0);
+  const std::optional<FrameRegistration> reg =
+      register_frame(in_frame(seen, x_WL), in_world(walls), compose(x_WL, Pose2(0.4, 0.4, 0.0)), FrameRegistrationConfig{});
+  ASSERT_TRUE(reg.has_value());
   EXPECT_TRUE(reg->ambiguous);
+  EXPECT_FALSE(reg->unresolved.has_value());
 }
 
 TEST(FrameRegistrationTest, NothingToRegisterAgainst) {
@@ -115,6 +146,9 @@ TEST(FrameRegistrationTest, ConfigValidation) {
   c = {};
   c.window_m = -1.0;
   EXPECT_THROW(c.validate(), std::invalid_argument);
+  c = {};
+  c.own_recent_maps = -1;
+  EXPECT_THROW(c.validate(), std::invalid_argument);
   GlobalMapConfig g;
   g.registration.window_rad = std::nan("");
   EXPECT_THROW(g.validate(), std::invalid_argument);
@@ -135,9 +169,17 @@ struct OverconfidentRevisit {
   }
 };
 
+// The robot's own previous map is all there is to register against here;
+// by default (own_recent_maps) it is left out, as having drifted with the frame.
+GlobalMapConfig own_maps_registered() {
+  GlobalMapConfig config;
+  config.registration.own_recent_maps = 0;
+  return config;
+}
+
 TEST(FrameRegistrationTest, AnOverconfidentFrameIsRelocatedAndTheWallsPair) {
   const OverconfidentRevisit revisit;
-  GlobalMapConfig config;
+  GlobalMapConfig config = own_maps_registered();
   config.health = HealthCheck::kFullEigen;
   GlobalMap map(config);
   const std::vector<FusionReport> reports = revisit.run(map);
@@ -160,7 +202,7 @@ TEST(FrameRegistrationTest, AnOverconfidentFrameIsRelocatedAndTheWallsPair) {
 
 TEST(FrameRegistrationTest, WithoutRegistrationTheSameRevisitDoublesTheWalls) {
   const OverconfidentRevisit revisit;
-  GlobalMapConfig config;
+  GlobalMapConfig config = own_maps_registered();
   config.registration.enabled = false;
   GlobalMap map(config);
   const std::vector<FusionReport> reports = revisit.run(map);
@@ -170,9 +212,38 @@ TEST(FrameRegistrationTest, WithoutRegistrationTheSameRevisitDoublesTheWalls) {
   EXPECT_GT(map.counts().segments, static_cast<int>(revisit.walls.size()));
 }
 
-TEST(FrameRegistrationTest, AConsistentRevisitIsLeftAlone) {
+TEST(FrameRegistrationTest, TheRobotsOwnRecentMapsAreNotRegisteredAgainst) {
   const OverconfidentRevisit revisit;
   GlobalMap map{GlobalMapConfig{}};
+  const std::vector<FusionReport> reports = revisit.run(map);
+  ASSERT_EQ(reports.size(), 1u);
+  EXPECT_EQ(reports[0].registration, RegistrationOutcome::kNothingNearby);
+}
+
+TEST(FrameRegistrationTest, TheRobotsOlderMapsCloseALoop) {
+  // Map 0 sees the building; maps 1-4 see nothing (the robot drives a loop
+  // elsewhere) and the last of them claims a pose 0.3 m and 2.3° off; map 5
+  // sees the building again. Map 0 is older than own_recent_maps: registered against.
+  const OverconfidentRevisit revisit;
+  GlobalMap map{GlobalMapConfig{}};
+  const Pose2 x_L0R(2.0, 0.5, 0.3);
+  map.fuse(synthetic::make_snapshot(0, 0, Pose2(), x_L0R, revisit.walls, revisit.tight));
+  Pose2 x_WL = x_L0R;
+  for (int seq = 1; seq <= 4; ++seq) {
+    const Pose2 step = seq == 4 ? Pose2(0.3, -0.2, 0.04) : Pose2();
+    map.fuse(synthetic::make_snapshot(0, seq, x_WL, step, {}, revisit.tight));
+  }
+  const std::vector<FusionReport> reports =
+      map.fuse(synthetic::make_snapshot(0, 5, x_L0R, Pose2(1.0, -0.5, -0.2), revisit.walls, revisit.tight));
+  ASSERT_EQ(reports.size(), 1u);
+  EXPECT_EQ(reports[0].registration, RegistrationOutcome::kRelocated);
+  EXPECT_EQ(reports[0].pairings_accepted, static_cast<int>(revisit.walls.size()));
+  EXPECT_EQ(map.counts().segments, static_cast<int>(revisit.walls.size()));
+}
+
+TEST(FrameRegistrationTest, AConsistentRevisitIsLeftAlone) {
+  const OverconfidentRevisit revisit;
+  GlobalMap map{own_maps_registered()};
   map.fuse(synthetic::make_snapshot(0, 0, Pose2(), revisit.x_L0R_true, revisit.walls, revisit.tight));
   const std::vector<FusionReport> reports =
       map.fuse(synthetic::make_snapshot(0, 1, revisit.x_L0R_true, Pose2(1.0, -0.5, -0.2), revisit.walls, revisit.tight));
