@@ -31,6 +31,7 @@ int main(int argc, char** argv) {
   std::string sim_dir;
   double rate = 1.0;
   int ack_timeout_ms = 2000;
+  int min_ack_timeout_ms = 5;
   int max_attempts = 10;
   std::uint64_t seed = 0;
   std::string config_file;
@@ -46,8 +47,11 @@ int main(int argc, char** argv) {
       ("rate", po::value(&rate)->default_value(rate), "replay speed: log time / R (R > 0)")
       ("lockstep", "send one scan at a time in time order, each after the previous one was acknowledged")
       ("ack-timeout-ms", po::value(&ack_timeout_ms)->default_value(ack_timeout_ms),
-       "lockstep: resend a scan not acknowledged within this time; rate: how long a sighting waits for acks; "
-       "both: resend a sighting lmf-server has not answered within this time")
+       "lockstep: the longest wait before resending a scan not acknowledged (the wait follows the measured "
+       "round trip, down to --min-ack-timeout-ms, doubles per resend, and is this before the first ack); "
+       "rate: how long a sighting waits for acks; both: resend a sighting lmf-server has not answered within this time")
+      ("min-ack-timeout-ms", po::value(&min_ack_timeout_ms)->default_value(min_ack_timeout_ms),
+       "lockstep: the shortest wait before resending a scan (> 0; at most --ack-timeout-ms)")
       ("max-attempts", po::value(&max_attempts)->default_value(max_attempts),
        "sends of one sighting before giving up on its answer from lmf-server, and (lockstep) of one scan before "
        "going on without its ack; 0: no limit (resend until answered, e.g. while lmf-server may be restarted)")
@@ -78,6 +82,7 @@ int main(int argc, char** argv) {
     options.lockstep = vm.count("lockstep") != 0u;
     options.rate = rate;
     options.ack_timeout = std::chrono::milliseconds(ack_timeout_ms);
+    options.min_ack_timeout = std::chrono::milliseconds(min_ack_timeout_ms);
     options.max_attempts = max_attempts;
     options.start_delay = std::chrono::milliseconds(start_delay_ms);
     if (vm.count("quiet") == 0u) {

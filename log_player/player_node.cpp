@@ -22,6 +22,8 @@ void PlayerOptions::validate() const {
     throw std::invalid_argument("rate must be > 0, got " + to_string(rate));
   }
   if (ack_timeout.count() <= 0) throw std::invalid_argument("ack timeout must be > 0 ms");
+  if (min_ack_timeout.count() <= 0) throw std::invalid_argument("min ack timeout must be > 0 ms");
+  if (!(drop_scans >= 0.0 && drop_scans < 1.0)) throw std::invalid_argument("drop_scans must be in [0, 1)");
   if (max_attempts < 0) throw std::invalid_argument("max attempts must be >= 0 (0: no limit)");
   if (start_delay.count() < 0) throw std::invalid_argument("start delay must be >= 0 ms");
   if (mission_end_interval.count() <= 0) throw std::invalid_argument("mission end interval must be > 0 ms");
@@ -32,8 +34,13 @@ void PlayerOptions::validate() const {
 }
 
 PlayerNode::PlayerNode(rt::Bus& bus, rt::EventLoop& loop, mission::MissionInputs inputs, PlayerOptions options)
-    : bus_(bus), loop_(loop), inputs_(std::move(inputs)), options_(std::move(options)) {
-  options_.validate();
+    : bus_(bus),
+      loop_(loop),
+      inputs_(std::move(inputs)),
+      options_((options.validate(), std::move(options))),
+      scan_resend_(rt::RetransmissionConfig{std::min(options_.min_ack_timeout, options_.ack_timeout),
+                                            options_.ack_timeout}),
+      drop_random_(options_.drop_seed) {
   if (inputs_.robots.empty()) throw std::invalid_argument("PlayerNode: no robots to replay");
   for (std::size_t i = 0; i < inputs_.robots.size(); ++i) {
     const mission::RobotLog& log = inputs_.robots[i];
@@ -101,14 +108,22 @@ std::optional<rt::ScanAck> PlayerNode::ack(int robot_id, std::int64_t seq) const
   return acks_[it->second][static_cast<std::size_t>(seq)];
 }
 
+std::chrono::milliseconds PlayerNode::wait_for(const rt::RetransmissionTimeout& resend, int sends) {
+  return std::chrono::ceil<std::chrono::milliseconds>(resend.timeout(sends));
+}
+
 void PlayerNode::send_scan(const ScanEvent& event) {
   const mission::RobotLog& log = inputs_.robots[event.robot];
   rt::RobotScan scan;
   scan.robot_id = log.robot_id;
   scan.seq = static_cast<std::int64_t>(event.scan);
   scan.scan = log.scans[event.scan];
-  bus_.publish(options_.channels.scan(log.robot_id), rt::to_message(scan));
   last_send_time_ = std::chrono::steady_clock::now();
+  if (options_.drop_scans > 0.0 && std::uniform_real_distribution<double>(0.0, 1.0)(drop_random_) < options_.drop_scans) {
+    ++counters_.scan_transmissions_dropped;
+    return;
+  }
+  bus_.publish(options_.channels.scan(log.robot_id), rt::to_message(scan));
 }
 
 void PlayerNode::on_ack(const std::string& channel, const void* data, std::size_t size) {
@@ -140,6 +155,7 @@ void PlayerNode::on_ack(const std::string& channel, const void* data, std::size_
   if (options_.lockstep && !replay_done_ && next_event_ < events_.size()) {
     const ScanEvent& waiting = events_[next_event_];
     if (waiting.robot == it->second && static_cast<std::int64_t>(waiting.scan) == a.seq && attempts_ > 0) {
+      if (attempts_ == 1) scan_resend_.on_round_trip(std::chrono::steady_clock::now() - first_sent_);
       if (ack_timer_) loop_.cancel(*ack_timer_);
       ack_timer_.reset();
       attempts_ = 0;
@@ -171,8 +187,9 @@ void PlayerNode::lockstep_step() {
   attempts_ = 1;
   ++counters_.scans_sent;
   send_scan(event);
+  first_sent_ = last_send_time_;
   const std::size_t index = next_event_;
-  ack_timer_ = loop_.after(options_.ack_timeout, [this, index] { lockstep_timeout(index); });
+  ack_timer_ = loop_.after(wait_for(scan_resend_, 1), [this, index] { lockstep_timeout(index); });
 }
 
 void PlayerNode::lockstep_timeout(std::size_t event_index) {
@@ -188,7 +205,7 @@ void PlayerNode::lockstep_timeout(std::size_t event_index) {
     ++attempts_;
     ++counters_.scan_resends;
     send_scan(event);  // same seq: the agent re-acks it if it already processed it
-    ack_timer_ = loop_.after(options_.ack_timeout, [this, event_index] { lockstep_timeout(event_index); });
+    ack_timer_ = loop_.after(wait_for(scan_resend_, attempts_), [this, event_index] { lockstep_timeout(event_index); });
     return;
   }
   ++counters_.scans_given_up;

@@ -16,14 +16,20 @@
 //
 // Two pacings:
 //  * lockstep: one scan at a time in global time order (ties: lower robot id),
-//    the next only after the agent acked it (resent after ack_timeout, given up
-//    after max_attempts sends, never with 0); sightings strictly before the next scan's time
+//    the next only after the agent acked it (resent after the learned resend
+//    wait, given up after max_attempts sends, never with 0); sightings strictly before the next scan's time
 //    are published first. Each local map is then published before the scans
 //    and sightings that follow it, so a FIFO server fuses exactly as lmf-offline.
 //  * rate R: each scan at (its time - first scan time) / R after the start,
 //    without waiting; a sighting once its time has come and both robots acked
 //    their last scan at or before it (after ack_timeout more, the latest ack
 //    before it stands in).
+// The lockstep resend wait (runtime/retransmission_timeout.hpp) is learned
+// from the scans' ack round trips, between min_ack_timeout and ack_timeout,
+// doubled per further send; before the first ack, ack_timeout. Sightings keep
+// the fixed ack_timeout: their answers wait behind fusions in the server's
+// queue, a mission has few of them to learn from, and a resend that crosses
+// its answer is counted stale_sequence by the server.
 // A sighting whose robot has not scanned yet (no local frame to relate) is
 // skipped, as lmf-offline does. The mission end goes out once every published
 // sighting was answered or given up (a server that was down when a sighting
@@ -39,6 +45,7 @@
 #include <map>
 #include <optional>
 #include <ostream>
+#include <random>
 #include <set>
 #include <string>
 #include <tuple>
@@ -51,6 +58,7 @@
 #include "runtime/event_loop.hpp"
 #include "runtime/messages.hpp"
 #include "runtime/rejection.hpp"
+#include "runtime/retransmission_timeout.hpp"
 
 namespace lmf::log_player {
 
@@ -58,7 +66,8 @@ struct PlayerOptions {
   runtime::Channels channels;
   bool lockstep = false;
   double rate = 1.0;                                // --rate pacing: log time / rate (> 0)
-  std::chrono::milliseconds ack_timeout{2000};      // > 0
+  std::chrono::milliseconds ack_timeout{2000};      // > 0: the longest resend wait
+  std::chrono::milliseconds min_ack_timeout{5};     // > 0: the shortest (at most ack_timeout)
   int max_attempts = 10;  // sends of one sighting, or (lockstep) of one scan, before giving up (0: no limit)
   std::chrono::milliseconds start_delay{0};         // before the first scan (subscribers starting)
   std::chrono::milliseconds mission_end_interval{200};
@@ -66,6 +75,10 @@ struct PlayerOptions {
   enum class Progress { kNone, kLine, kSteps } progress = Progress::kNone;
   std::ostream* progress_stream = nullptr;          // required unless progress is kNone
   std::function<void()> on_finished;                // after the last mission_end_t
+  // Simulated loss (tests): each scan transmission, first or resend, is
+  // dropped with this probability (seeded), never reaching the bus.
+  double drop_scans = 0.0;
+  std::uint64_t drop_seed = 1;
   // Throws std::invalid_argument naming the bad field.
   void validate() const;
   // Whether something already sent `attempts` times may be sent once more.
@@ -78,6 +91,7 @@ struct PlayerCounters {
   std::int64_t scan_resends = 0;     // lockstep resends after a timeout
   std::int64_t scans_acked = 0;      // distinct scans acknowledged
   std::int64_t scans_given_up = 0;   // lockstep: no ack after max_attempts sends
+  std::int64_t scan_transmissions_dropped = 0;  // by the simulated loss (drop_scans)
   std::int64_t acks_duplicate = 0;
   std::int64_t sightings_total = 0;
   std::int64_t sightings_published = 0;
@@ -122,6 +136,7 @@ class PlayerNode {
 
   void begin();
   void send_scan(const ScanEvent& event);
+  static std::chrono::milliseconds wait_for(const runtime::RetransmissionTimeout& resend, int sends);
   void on_ack(const std::string& channel, const void* data, std::size_t size);
   void on_sighting_ack(const std::string& channel, const void* data, std::size_t size);
   // Lockstep.
@@ -155,6 +170,9 @@ class PlayerNode {
   std::size_t next_event_ = 0;
   std::size_t next_sighting_ = 0;
   int attempts_ = 0;                                  // lockstep: sends of events_[next_event_]
+  std::chrono::steady_clock::time_point first_sent_;  // lockstep: of events_[next_event_]
+  runtime::RetransmissionTimeout scan_resend_;
+  std::mt19937_64 drop_random_;
   std::optional<int> ack_timer_;
   std::optional<int> step_timer_;                     // the next lockstep step or mission_end_t repeat
 

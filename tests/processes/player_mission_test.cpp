@@ -4,6 +4,7 @@
 // local map exactly once, the player resends unacknowledged scans, --rate mode.
 #include <chrono>
 #include <cstdint>
+#include <iostream>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -129,7 +130,9 @@ std::unique_ptr<lmf::mission::MissionInputs> PlayerMission::inputs_;
 TEST_F(PlayerMission, LockstepAcksEverythingAndEqualsOffline) {
   ASSERT_EQ(inputs_->robots.size(), 2u);
   ASSERT_FALSE(inputs_->sightings.empty()) << "robot 1 needs a sighting to join";
-  auto s = make_system(lockstep_options());
+  PlayerOptions options = lockstep_options();
+  options.min_ack_timeout = options.ack_timeout;  // a scan acked within 1 s is never resent
+  auto s = make_system(options);
   s->player->start();
   ASSERT_TRUE(run_until(s->loop, [&] { return s->all_done(); }, 60s)) << s->player->summary();
 
@@ -300,6 +303,46 @@ TEST_F(PlayerMission, DroppedLocalMapTransmissionsAreStillFusedExactlyOnce) {
   std::int64_t dropped = 0;
   for (const auto& agent : s->agents) dropped += agent->counters().map_transmissions_dropped;
   EXPECT_GT(dropped, 0) << "the simulated loss dropped nothing: pick another seed";
+}
+
+TEST_F(PlayerMission, LockstepUnderTwentyPercentScanLossEqualsTheLosslessRunAndKeepsItsPace) {
+  // One in five scan transmissions (first sends and resends) never reaches
+  // the bus. The resend wait follows the measured ack round trip (about a
+  // millisecond on memq://), so each loss costs milliseconds, not the 1 s
+  // ack_timeout: the replay stays within a few times the lossless one, and
+  // since lockstep keeps the order, the map is the same.
+  const auto timed_run = [](const PlayerOptions& options) {
+    auto s = make_system(options);
+    const auto start = std::chrono::steady_clock::now();
+    s->player->start();
+    EXPECT_TRUE(run_until(s->loop, [&] { return s->all_done(); }, 120s)) << s->player->summary();
+    return std::pair{std::move(s), std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()};
+  };
+  const auto [lossless, lossless_s] = timed_run(lockstep_options());
+  PlayerOptions lossy_options = lockstep_options();
+  lossy_options.drop_scans = 0.2;
+  lossy_options.drop_seed = 5;
+  const auto [lossy, lossy_s] = timed_run(lossy_options);
+
+  const auto& pc = lossy->player->counters();
+  EXPECT_GT(pc.scan_transmissions_dropped, pc.scans_total / 10);
+  EXPECT_GE(pc.scan_resends, pc.scan_transmissions_dropped);  // every loss resent (and a slow ack may be)
+  EXPECT_EQ(pc.scans_given_up, 0);
+  EXPECT_EQ(pc.scans_acked, pc.scans_total);
+  expect_every_map_fused_once(*lossy);
+  EXPECT_EQ(lossy->server->fusions(), lossless->server->fusions());
+  EXPECT_EQ(lossy->server->map().counts().segments, lossless->server->map().counts().segments);
+  for (const auto& frame : lossless->server->map().corrected_frames()) {
+    const auto ours = lossy->server->map().corrected_frame(frame.robot_id);
+    ASSERT_TRUE(ours.has_value());
+    EXPECT_EQ(ours->seq, frame.seq);
+    EXPECT_TRUE(lmf::is_near(ours->x_WL, frame.x_WL, 1e-3, 1e-4)) << "robot " << frame.robot_id;
+  }
+  // The pace: a fixed 1 s wait per loss would take pc.scan_resends seconds more.
+  std::cout << "lockstep: lossless " << lossless_s << " s, 20 % scan loss " << lossy_s << " s ("
+            << pc.scan_transmissions_dropped << " of " << pc.scans_sent + pc.scan_resends << " sends lost)\n";
+  EXPECT_LT(lossy_s, 3.0 * lossless_s + 1.0);
+  EXPECT_LT(lossy_s, 0.5 * static_cast<double>(pc.scan_resends)) << "the losses waited about ack_timeout";
 }
 
 TEST_F(PlayerMission, PlayerResendsScansUntilALateAgentAcks) {

@@ -152,7 +152,11 @@ TEST(ServerMission, LockstepReplayThroughTheServerEqualsOffline) {
 
   const std::int64_t shipped = lmf::testing::expect_each_map_fused_once(agents, acks);
   EXPECT_EQ(server.view().fusion_count, shipped);
-  EXPECT_EQ(server.reject_counts().size(), 0u);
+  EXPECT_EQ(server.reject_counts().size(), 0u) << [&] {
+    std::string reasons;
+    for (const auto& [name, n] : server.reject_counts()) reasons += " " + name + " " + std::to_string(n);
+    return reasons;
+  }();
   EXPECT_EQ(server.stats().deferred_queue_full, 0);
 
   ASSERT_TRUE(server.shutdown(true));

@@ -1,0 +1,51 @@
+// How long to wait for an answer before sending again, learned from the
+// answers (the smoothed round trip of RFC 6298): every resend loop of lmf (the
+// player's lockstep scans and its sightings, the agents' local maps) waits
+//
+//   RTO = clamp(SRTT + 4 RTTVAR, min, max),  SRTT ← 7/8 SRTT + 1/8 R,
+//                                             RTTVAR ← 3/4 RTTVAR + 1/4 |SRTT − R|,
+//
+// after a first send, doubled after each further send of the same message
+// (backoff) and never beyond `max`. Before the first answer it waits `max`.
+// Only answers to a message sent once are samples (Karn's rule: an answer
+// after a resend may answer either send). On loopback, where an answer takes
+// a millisecond, a lost datagram then costs a few milliseconds, not `max`.
+// Pure and synchronous; the caller measures R.
+#pragma once
+
+#include <chrono>
+#include <optional>
+
+namespace lmf::runtime {
+
+struct RetransmissionConfig {
+  std::chrono::milliseconds min{10};    // > 0: the shortest wait (scheduling noise, a slow peer)
+  std::chrono::milliseconds max{2000};  // >= min: before the first answer, and the longest wait
+  // Throws std::invalid_argument naming the bad field.
+  void validate() const;
+};
+
+class RetransmissionTimeout {
+ public:
+  using Duration = std::chrono::steady_clock::duration;
+
+  // Throws std::invalid_argument for a bad config.
+  explicit RetransmissionTimeout(RetransmissionConfig config);
+
+  // R: the time from the (only) send of a message to its answer. Negative
+  // samples are ignored.
+  void on_round_trip(Duration round_trip);
+
+  // The wait after the `sends`-th send (>= 1) of one message.
+  Duration timeout(int sends) const;
+
+  std::optional<Duration> smoothed_round_trip() const { return srtt_; }
+  const RetransmissionConfig& config() const { return config_; }
+
+ private:
+  RetransmissionConfig config_;
+  std::optional<Duration> srtt_;
+  Duration rttvar_{0};
+};
+
+}  // namespace lmf::runtime
