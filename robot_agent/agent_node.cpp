@@ -30,7 +30,6 @@ void AgentOptions::validate() const {
   if (robot_id < 0) throw std::invalid_argument("robot id must be >= 0, got " + to_string(robot_id));
   local_map.validate();
   if (resend_interval.count() <= 0) throw std::invalid_argument("resend interval must be > 0 ms");
-  if (min_resend_interval.count() <= 0) throw std::invalid_argument("min resend interval must be > 0 ms");
   if (status_interval.count() <= 0) throw std::invalid_argument("status interval must be > 0 ms");
   if (max_seq_gap <= 0) throw std::invalid_argument("max_seq_gap must be > 0");
   if (test_stall_after_scan && *test_stall_after_scan < 0) throw std::invalid_argument("stall scan seq must be >= 0");
@@ -44,9 +43,7 @@ AgentNode::AgentNode(rt::Bus& bus, rt::EventLoop& loop, AgentOptions options)
       loop_(loop),
       options_((options.validate(), std::move(options))),
       local_map_(options_.local_map, options_.robot_id),
-      drop_random_(options_.drop_seed),
-      map_resend_(rt::RetransmissionConfig{std::min(options_.min_resend_interval, options_.resend_interval),
-                                           options_.resend_interval}) {
+      drop_random_(options_.drop_seed) {
   if (!options_.state_dir.empty()) {
     std::error_code error;
     std::filesystem::create_directories(options_.state_dir, error);
@@ -73,8 +70,8 @@ AgentNode::AgentNode(rt::Bus& bus, rt::EventLoop& loop, AgentOptions options)
       ch.mission_end(), [this](const std::string& c, const void* d, std::size_t n) {
         if (!stalled_) on_mission_end(c, d, n);
       }));
-  // Checked twice per shortest wait: a map is resent within half of it after its wait.
-  const auto tick = std::max(std::chrono::milliseconds(5), map_resend_.config().min / 2);
+  // Checked a few times per interval so a map is resent within ~1.25 intervals of its last send.
+  const auto tick = std::max(std::chrono::milliseconds(5), options_.resend_interval / 4);
   timers_.push_back(loop_.every(tick, [this] {
     if (!stalled_) resend_due();
   }));
@@ -294,7 +291,6 @@ std::optional<std::int64_t> AgentNode::ship() {
 void AgentNode::transmit(std::int64_t seq, PendingMap& map) {
   (void)seq;
   map.last_sent = std::chrono::steady_clock::now();
-  if (++map.sends == 1) map.first_sent = map.last_sent;
   ++counters_.map_transmissions;
   if (options_.drop_local_maps > 0.0 &&
       std::uniform_real_distribution<double>(0.0, 1.0)(drop_random_) < options_.drop_local_maps) {
@@ -307,7 +303,7 @@ void AgentNode::transmit(std::int64_t seq, PendingMap& map) {
 void AgentNode::resend_due() {
   const auto now = std::chrono::steady_clock::now();
   for (auto& [seq, map] : pending_) {
-    if (now - map.last_sent >= map_resend_.timeout(map.sends)) {
+    if (now - map.last_sent >= options_.resend_interval) {
       ++counters_.map_resends;
       transmit(seq, map);
     }
@@ -335,7 +331,6 @@ void AgentNode::on_local_map_ack(const std::string& channel, const void* data, s
     }
     return;  // an ack of a map acked before (a resend crossed the first ack): nothing to do
   }
-  if (it->second.sends == 1) map_resend_.on_round_trip(std::chrono::steady_clock::now() - it->second.first_sent);
   pending_.erase(it);
   ++counters_.maps_acknowledged;
   if (a.status == rt::LocalMapAck::Status::kQueued) ++counters_.maps_queued;

@@ -5,10 +5,8 @@
 //                             ship: snapshot, reset, publish local_map_t
 //   LMF_SCAN_ACK         out  after every processed scan (and after the map it
 //                             shipped, if any), with the state after the scan
-//   LMF_LOCAL_MAP        out  each shipped map, resent until the server
-//                             acknowledges it: after a wait learned from the
-//                             acks' round trips (runtime/retransmission_timeout.hpp),
-//                             between min_resend_interval and resend_interval
+//   LMF_LOCAL_MAP        out  each shipped map, resent every resend_interval
+//                             until the server acknowledges it
 //   LMF_LOCAL_MAP_ACK    in   FUSED / DUPLICATE / QUEUED: stop resending
 //   LMF_CORRECTED_FRAMES in   x_WL of this robot: global pose = x_WL ⊕ x_LR
 //   LMF_MISSION_END      in   ship the unfinished map, resend until acked
@@ -58,7 +56,6 @@
 #include "runtime/event_loop.hpp"
 #include "runtime/messages.hpp"
 #include "runtime/rejection.hpp"
-#include "runtime/retransmission_timeout.hpp"
 
 namespace lmf::robot_agent {
 
@@ -66,8 +63,7 @@ struct AgentOptions {
   int robot_id = 0;
   LocalMapConfig local_map;
   runtime::Channels channels;
-  std::chrono::milliseconds resend_interval{1000};  // > 0: the longest resend wait, and the first
-  std::chrono::milliseconds min_resend_interval{100};  // > 0: the shortest (at most resend_interval)
+  std::chrono::milliseconds resend_interval{1000};  // > 0
   std::chrono::milliseconds status_interval{200};   // > 0
   std::int64_t max_seq_gap = 1000;  // a scan further ahead than this is refused (> 0)
   // Simulated loss (tests): each local-map transmission, first or resend, is
@@ -151,8 +147,6 @@ class AgentNode {
   struct PendingMap {
     std::vector<std::uint8_t> bytes;  // the encoded local_map_t
     std::chrono::steady_clock::time_point last_sent;
-    std::chrono::steady_clock::time_point first_sent;
-    int sends = 0;  // transmissions by this agent's life
   };
   struct Frame {
     std::int64_t map_seq = 0;  // the local map whose origin x_WL is
@@ -188,7 +182,6 @@ class AgentNode {
   runtime::RejectCounter rejects_;
   AgentCounters counters_;
   std::mt19937_64 drop_random_;
-  runtime::RetransmissionTimeout map_resend_;
 
   std::int64_t next_scan_seq_ = 0;
   std::optional<std::int64_t> last_scan_utime_;

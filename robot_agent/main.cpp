@@ -27,7 +27,6 @@ int main(int argc, char** argv) {
   int robot_id = -1;
   std::string config_file;
   int resend_ms = 1000;
-  int min_resend_ms = 20;
   double drop = 0.0;
   std::uint64_t drop_seed = 1;
   std::string state_dir;
@@ -39,10 +38,7 @@ int main(int argc, char** argv) {
       ("robot-id", po::value(&robot_id)->required(), "this robot's id (>= 0): listens on <prefix>SCAN_<id>")
       ("config", po::value(&config_file), "mission JSON config; its local_map section is used (default: built-in)")
       ("resend-interval-ms", po::value(&resend_ms)->default_value(resend_ms),
-       "the longest wait before resending a local map lmf-server has not acknowledged (and the wait before "
-       "the first acknowledgement); the wait follows the measured round trip and doubles per resend")
-      ("min-resend-interval-ms", po::value(&min_resend_ms)->default_value(min_resend_ms),
-       "the shortest wait before resending a local map (> 0; at most --resend-interval-ms)")
+       "resend an unacknowledged local map after this many ms")
       ("drop-local-maps", po::value(&drop)->default_value(drop),
        "for tests: drop this fraction in [0, 1) of local-map transmissions (first sends and resends)")
       ("drop-seed", po::value(&drop_seed)->default_value(drop_seed), "seed of the simulated loss")
@@ -63,7 +59,6 @@ int main(int argc, char** argv) {
     options.robot_id = robot_id;
     options.channels = rt::Channels(common.channel_prefix);
     options.resend_interval = std::chrono::milliseconds(resend_ms);
-    options.min_resend_interval = std::chrono::milliseconds(min_resend_ms);
     options.drop_local_maps = drop;
     options.drop_seed = drop_seed;
     options.state_dir = state_dir;

@@ -239,7 +239,6 @@ TEST(AgentRestart, ResendsUnacknowledgedMapsAndContinuesFromThePersistedOrigin) 
   options.robot_id = 0;
   options.local_map.ship_distance_m = 2.0;
   options.resend_interval = 10s;  // no resend unless restarted: the test sees each transmission
-  options.min_resend_interval = 10s;
   options.status_interval = 1s;
   options.max_seq_gap = 3;
   options.state_dir = state_dir.path();
@@ -387,7 +386,6 @@ TEST(AgentRestart, AfterTheMissionEndTheLastMapIsStillDelivered) {
   AgentOptions options;
   options.robot_id = 0;
   options.resend_interval = 10s;
-  options.min_resend_interval = 10s;
   options.state_dir = state_dir.path();
   Rig rig;
   auto agent = std::make_unique<AgentNode>(rig.bus, rig.loop, options);
@@ -473,7 +471,6 @@ TEST(AgentRestart, LockstepMissionCompletesWithNothingLost) {
   first_life.drop_local_maps = 0.5;
   first_life.drop_seed = 3;
   first_life.resend_interval = 600s;
-  first_life.min_resend_interval = 600s;
   std::map<int, std::unique_ptr<AgentNode>> agents;
   for (const auto& robot : inputs.robots) {
     agents[robot.robot_id] = std::make_unique<AgentNode>(
