@@ -298,6 +298,7 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
     Eigen::Vector3d g_laser = Eigen::Vector3d::Zero();
     int matched = 0;
     double sum_e2 = 0.0;
+    double sum_we2 = 0.0;
     const Eigen::Matrix2d R = rotation(x.phi);
     const Eigen::Vector2d t(x.x, x.y);
     for (const Eigen::Vector2d& b : B) {
@@ -313,6 +314,7 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
       A_unweighted += JtJ;
       g_laser.noalias() += w * e * J.transpose();
       sum_e2 += e * e;
+      sum_we2 += w * e * e;
       ++matched;
     }
     out.match.correspondences = matched;
@@ -322,7 +324,10 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
     out.mean_point_information = A_unweighted / matched;
     // Λ at most max_independent_points effective points, then widened by C_m:
     // Λ' = (I + Λ C_m)⁻¹ Λ, and the gradient of the widened term (I + Λ C_m)⁻¹ g.
-    const double laser_weight = std::min(1.0, config.max_independent_points / matched) / sigma2;
+    // σ² is the larger of the configured and the residuals' own (Huber-weighted) variance.
+    const double residual_sigma2 = config.residual_sigma ? sum_we2 / (matched - 3) : 0.0;
+    const double laser_weight =
+        std::min(1.0, config.max_independent_points / matched) / std::max(sigma2, residual_sigma2);
     const Eigen::Matrix3d Lambda = laser_weight * A_laser;
     const Eigen::Matrix3d widen = (Eigen::Matrix3d::Identity() + Lambda * C_m).inverse();
     Eigen::Matrix3d Lambda_widened = widen * Lambda;

@@ -141,6 +141,42 @@ TEST(ScanMatcher, RecoversAKnownIncrementInARoom) {
   EXPECT_LT(p.dot(m->covariance.ldlt().solve(p)), 16.3);
 }
 
+// residual_sigma: the laser term's σ² is the larger of point_sigma_m² and the
+// residuals' own variance. Scans noisier than point_sigma_m get less laser
+// information in proportion; scans within it the same as without the option.
+TEST(ScanMatcher, ResidualSigmaWidensTheLaserTermOnlyForScansNoisierThanConfigured) {
+  const Pose2 x_WA(0.0, 0.0, 0.1);
+  const Pose2 x_WB(0.8, 0.3, 0.25);
+  const Pose2 u_hat = compose(between(x_WA, x_WB), Pose2(0.05, -0.03, 0.02));
+  const Eigen::Matrix3d Q = odometry_like_covariance(u_hat);
+  ScanMatcherConfig fixed;
+  fixed.residual_sigma = false;
+  ScanMatcherConfig calibrated = fixed;
+  calibrated.residual_sigma = true;
+  for (const double range_noise_m : {0.005, 0.09}) {
+    std::mt19937 rng(11);
+    const LaserScan A = testing::make_scan(room(), x_WA, 361, 80.0, range_noise_m, &rng);
+    const LaserScan B = testing::make_scan(room(), x_WB, 361, 80.0, range_noise_m, &rng);
+    const std::optional<ScanMatch> a =
+        match_scans(ReferenceScan::from(A, fixed), scan_points(B, fixed), u_hat, Q, fixed);
+    const std::optional<ScanMatch> b =
+        match_scans(ReferenceScan::from(A, calibrated), scan_points(B, calibrated), u_hat, Q, calibrated);
+    ASSERT_TRUE(a && b) << range_noise_m;
+    ASSERT_TRUE(symmetric_positive_definite(b->covariance));
+    const double ratio = b->laser_information.trace() / a->laser_information.trace();
+    if (range_noise_m < fixed.point_sigma_m) {
+      // (The first iterations' wide gate admits a few larger residuals: the
+      // path to the optimum differs by rounding-sized steps.)
+      EXPECT_NEAR(ratio, 1.0, 1e-6) << "residuals within point_sigma_m change nothing";
+    } else {
+      // Residuals of about 0.09 m against 0.03 m configured (Huber-weighted, and
+      // the model noise's widening unchanged): clearly less information.
+      EXPECT_LT(ratio, 0.75);
+      EXPECT_GT(b->covariance(2, 2), a->covariance(2, 2));
+    }
+  }
+}
+
 TEST(ScanMatcher, InACorridorTheAlongTrackDirectionStaysWithTheOdometry) {
   // Two parallel walls far longer than the laser's reach: x is unobservable.
   testing::SyntheticWorld corridor;
