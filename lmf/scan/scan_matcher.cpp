@@ -386,6 +386,25 @@ CorrelativeWindow search_window(const std::vector<Eigen::Vector2d>& points, cons
   return {config.search_window_m, config.search_window_rad, config.search_resolution_m / range};
 }
 
+// The reference points and, for each, samples along its line (the tangent of
+// its normal) out to ± half_length_m at steps of half of it: the likelihood
+// field then stands for the walls, not for where the beams happened to hit
+// them. Without them, walls seen by a sparse laser (1° between beams: 9 cm
+// apart at 5 m, 17 cm at 10 m) score between their points as if they were
+// missing, and a scan that moved far (little overlap left) fails min_overlap
+// at the right pose.
+std::vector<Eigen::Vector2d> points_along_lines(const ReferenceScan& A, double half_length_m) {
+  std::vector<Eigen::Vector2d> out;
+  out.reserve(5 * A.size());
+  for (std::size_t i = 0; i < A.size(); ++i) {
+    const Eigen::Vector2d& p = A.points()[i];
+    const Eigen::Vector2d t(-A.normals()[i].y(), A.normals()[i].x());
+    out.push_back(p);
+    for (const double s : {-1.0, -0.5, 0.5, 1.0}) out.push_back(p + s * half_length_m * t);
+  }
+  return out;
+}
+
 }  // namespace
 
 std::optional<ScanMatch> refine_match(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& B,
@@ -430,7 +449,8 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
   const int half_cells = static_cast<int>(std::floor(window.linear_m / resolution + 1e-9));
   int levels = 1;
   while ((1 << (levels - 1)) < 2 * half_cells + 1) ++levels;
-  const LikelihoodField field(A.points(), region, resolution, resolution, levels);
+  const LikelihoodField field(config.field_along_lines ? points_along_lines(A, resolution) : A.points(), region,
+                              resolution, resolution, levels);
   const std::optional<CorrelativeResult> search =
       correlative_search(field, search_points, u_hat, window, config.min_overlap, config.ambiguity_ratio);
   if (!search) return std::nullopt;

@@ -89,6 +89,12 @@ struct ScanMatcherConfig {
   // The best pose of the window must explain at least this share of the scan's
   // points (mean likelihood): less, and the scans barely overlap.
   double min_overlap = 0.25;
+  // The search's likelihood field is drawn from the reference points and from
+  // samples along each one's line (± search_resolution_m along the tangent of
+  // its normal), so it stands for the walls rather than for where the beams
+  // hit them: a sparse laser's walls (1° between beams: 17 cm apart at 10 m)
+  // otherwise score between their points as if missing.
+  bool field_along_lines = true;
   // Ambiguous when a second pose of the window, distinct from the best (points
   // moved by more than two cells across their surfaces, RMS), scores at least
   // this fraction of the best.

@@ -16,6 +16,7 @@ void read_scan_matcher_config(io::JsonReader& reader, ScanMatcherConfig& config)
   reader.read("search_window_rad", config.search_window_rad, io::non_negative());
   reader.read("search_resolution_m", config.search_resolution_m, io::positive());
   reader.read("min_overlap", config.min_overlap, io::non_negative());
+  reader.read("field_along_lines", config.field_along_lines);
   reader.read("ambiguity_ratio", config.ambiguity_ratio, io::positive());
   reader.read("history_scans", config.history_scans, io::at_least(1.0));
   reader.read("keyframe_distance_m", config.keyframe_distance_m, io::non_negative());
