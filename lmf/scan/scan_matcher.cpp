@@ -386,8 +386,9 @@ CorrelativeWindow search_window(const std::vector<Eigen::Vector2d>& points, cons
   return {config.search_window_m, config.search_window_rad, config.search_resolution_m / range};
 }
 
-// The reference points and, for each, samples along its line (the tangent of
-// its normal) out to ± half_length_m at steps of half of it: the likelihood
+// The reference points and, for each, two samples along its line (the tangent
+// of its normal) at ± half_length_m (the field's σ: between two samples of a
+// wall's points up to 2 σ apart, no place is more than σ/2 from one): the likelihood
 // field then stands for the walls, not for where the beams happened to hit
 // them. Without them, walls seen by a sparse laser (1° between beams: 9 cm
 // apart at 5 m, 17 cm at 10 m) score between their points as if they were
@@ -395,12 +396,12 @@ CorrelativeWindow search_window(const std::vector<Eigen::Vector2d>& points, cons
 // at the right pose.
 std::vector<Eigen::Vector2d> points_along_lines(const ReferenceScan& A, double half_length_m) {
   std::vector<Eigen::Vector2d> out;
-  out.reserve(5 * A.size());
+  out.reserve(3 * A.size());
   for (std::size_t i = 0; i < A.size(); ++i) {
     const Eigen::Vector2d& p = A.points()[i];
     const Eigen::Vector2d t(-A.normals()[i].y(), A.normals()[i].x());
     out.push_back(p);
-    for (const double s : {-1.0, -0.5, 0.5, 1.0}) out.push_back(p + s * half_length_m * t);
+    for (const double s : {-1.0, 1.0}) out.push_back(p + s * half_length_m * t);
   }
   return out;
 }
