@@ -183,19 +183,20 @@ void ServerNode::on_local_map(const void* data, std::size_t size) {
   const auto arrived = Clock::now();
   const bool room = worker_->has_room();
   std::int64_t lsn = 0;
+  const auto [journaled, signer] = as_journaled(data, size);
   if (room && store_) {
     // On disk before the worker sees it (so before any ack); in FIFO order.
     try {
-      lsn = store_->append(channels_.local_map(), data, size, wall_utime());
+      lsn = store_->append(channels_.local_map(), journaled.data(), journaled.size(), wall_utime());
     } catch (const StateError& e) {
       ++stats_.journal_failures;
       std::cerr << "lmf-server: " << where << " NOT taken (the agent will resend it): " << e.what() << '\n';
       return;
     }
   }
-  const bool taken = room && worker_->try_push([this, snapshot = std::move(snapshot), arrived, lsn]() mutable {
+  const bool taken = room && worker_->try_push([this, snapshot = std::move(snapshot), arrived, lsn, signer]() mutable {
     fuse_task(std::move(snapshot), arrived);
-    after_task(lsn);
+    after_task(lsn, signer);
   });
   if (!taken) {
     // Back-pressure: not acked, so the agent resends it (never dropped silently).
@@ -246,9 +247,10 @@ void ServerNode::on_sighting(const void* data, std::size_t size) {
   }
   const auto arrived = Clock::now();
   std::int64_t lsn = 0;
+  const auto [journaled, signer] = as_journaled(data, size);
   if (store_) {
     try {
-      lsn = store_->append(channels_.sighting(), data, size, wall_utime());
+      lsn = store_->append(channels_.sighting(), journaled.data(), journaled.size(), wall_utime());
     } catch (const StateError& e) {
       ++stats_.journal_failures;
       std::cerr << "lmf-server: " << where << " NOT taken (the player will resend it): " << e.what() << '\n';
@@ -258,11 +260,18 @@ void ServerNode::on_sighting(const void* data, std::size_t size) {
   sightings_waiting_.insert(key);
   // Unbounded: a sighting is tiny, and one waiting is not taken twice (FusionWorker header).
   worker_->try_push(
-      [this, s, arrived, lsn] {
+      [this, s, arrived, lsn, signer] {
         sighting_task(s, arrived);
-        after_task(lsn);
+        after_task(lsn, signer);
       },
       FusionWorker::Bound::kUnbounded);
+}
+
+std::pair<std::span<const std::uint8_t>, std::optional<runtime::auth::SignedBy>> ServerNode::as_journaled(
+    const void* data, std::size_t size) const {
+  if (!store_ || !bus_.authenticated()) return {{static_cast<const std::uint8_t*>(data), size}, std::nullopt};
+  const std::span<const std::uint8_t> received = bus_.message_as_received();
+  return {received, runtime::auth::signed_by(received)};
 }
 
 void ServerNode::on_outcome(Outcome& outcome) {
@@ -376,6 +385,7 @@ void ServerNode::recover_state() {
     covariance_always_ok_ = st.covariance_always_ok;
     last_min_pivot_ = st.last_min_pivot;
     latest_utime_ = st.latest_utime;
+    taken_high_water_ = std::move(st.taken_high_water);
     applied_lsn_ = rec.snapshot_lsn;
     recovery_.from = rec.snapshot_file;
   } else {
@@ -396,6 +406,9 @@ void ServerNode::recover_state() {
     replay(r);
     applied_lsn_ = r.lsn;
   }
+  // What was taken before the restart stays refused by the replay windows
+  // (auth.hpp): a capture of it cannot be replayed to this server.
+  bus_.refuse_through(taken_high_water_);
   store_->start(rec, applied_lsn_, encode_state());
   last_snapshot_ = Clock::now();
   recovery_.lsn = applied_lsn_;
@@ -418,8 +431,13 @@ void ServerNode::recover_state() {
 
 void ServerNode::replay(const JournalRecord& record) {
   const std::string at = "journal record lsn " + std::to_string(record.lsn);
+  // An authenticated server journals the trailer too; it was verified on receipt.
+  const std::span<const std::uint8_t> received(reinterpret_cast<const std::uint8_t*>(record.data.data()),
+                                               record.data.size());
+  if (auto signer = runtime::auth::signed_by(received)) runtime::auth::raise(taken_high_water_, *signer);
+  const std::size_t size = runtime::auth::unverified_payload_size(received.data(), received.size());
   if (record.channel == channels_.local_map()) {
-    auto decoded = runtime::decode<LocalMapSnapshot>(record.data.data(), record.data.size(), options_.limits);
+    auto decoded = runtime::decode<LocalMapSnapshot>(record.data.data(), size, options_.limits);
     if (!decoded) {
       recovery_.problems.push_back(at + ": no longer decodes (" + decoded.rejection().describe() + "): skipped");
       return;
@@ -431,7 +449,7 @@ void ServerNode::replay(const JournalRecord& record) {
     // Applied now (its outcome, and the FUSED/QUEUED ack, follow on the loop).
     if (map_.has_fused(robot_id, seq) || map_.is_queued(robot_id, seq)) seqs_[robot_id].applied.insert(seq);
   } else if (record.channel == channels_.sighting()) {
-    auto decoded = runtime::decode<runtime::Sighting>(record.data.data(), record.data.size(), options_.limits);
+    auto decoded = runtime::decode<runtime::Sighting>(record.data.data(), size, options_.limits);
     if (!decoded) {
       recovery_.problems.push_back(at + ": no longer decodes (" + decoded.rejection().describe() + "): skipped");
       return;
@@ -448,12 +466,13 @@ void ServerNode::replay(const JournalRecord& record) {
 
 std::string ServerNode::encode_state() const {
   return encode_server_state(map_, book_, fusions_, sightings_, fusion_ms_sum_, last_covariance_ok_,
-                             covariance_always_ok_, last_min_pivot_, latest_utime_);
+                             covariance_always_ok_, last_min_pivot_, latest_utime_, taken_high_water_);
 }
 
-void ServerNode::after_task(std::int64_t lsn) {
+void ServerNode::after_task(std::int64_t lsn, const std::optional<runtime::auth::SignedBy>& signer) {
   if (!store_) return;
   applied_lsn_ = std::max(applied_lsn_, lsn);
+  if (signer) runtime::auth::raise(taken_high_water_, *signer);
   state_dirty_ = true;
   if (options_.snapshot_interval.count() == 0 || Clock::now() - last_snapshot_ >= options_.snapshot_interval) {
     snapshot_now();

@@ -53,6 +53,7 @@
 #include <memory>
 #include <optional>
 #include <set>
+#include <span>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -199,7 +200,13 @@ class ServerNode {
   // Durable state: load + replay (constructor), after each journaled task, snapshots.
   void recover_state();
   void replay(const JournalRecord& record);
-  void after_task(std::int64_t lsn);
+  // `signer`: who signed the journaled input (authenticated servers), whose
+  // number the persisted replay windows then refuse.
+  void after_task(std::int64_t lsn, const std::optional<runtime::auth::SignedBy>& signer);
+  // The bytes an input is journaled as (its trailer kept when signatures are
+  // verified) and who signed it; loop thread, inside a handler.
+  std::pair<std::span<const std::uint8_t>, std::optional<runtime::auth::SignedBy>> as_journaled(const void* data,
+                                                                                               std::size_t size) const;
   // Encodes and submits a snapshot if anything was applied since the last one
   // and the store's writer is free; `at_stop`: waits for the writer and writes
   // synchronously, dirty or not.
@@ -233,6 +240,7 @@ class ServerNode {
   std::int64_t latest_utime_ = 0;
   std::unique_ptr<StateStore> store_;  // its append() is called from the loop thread
   std::int64_t applied_lsn_ = 0;       // last journal record applied
+  runtime::auth::HighWater taken_high_water_;  // per signer, the highest seq of an input applied
   bool state_dirty_ = false;           // applied something since the last snapshot
   double encode_ms_max_ = 0.0;
   std::chrono::steady_clock::time_point last_snapshot_{};

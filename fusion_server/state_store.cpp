@@ -200,7 +200,8 @@ ParsedJournal parse_journal(const std::string& bytes) {
 std::string encode_server_state(const fusion::GlobalMap& map, const mission::TrajectoryBook& book,
                                 const std::vector<FusionRecord>& fusions, const std::vector<SightingRecord>& sightings,
                                 double fusion_ms_sum, bool last_covariance_ok, bool covariance_always_ok,
-                                const std::optional<double>& last_min_pivot, std::int64_t latest_utime) {
+                                const std::optional<double>& last_min_pivot, std::int64_t latest_utime,
+                                const runtime::auth::HighWater& taken_high_water) {
   std::string out;
   // P's lower triangle dominates: one allocation instead of a doubling series of copies.
   const auto n = static_cast<std::size_t>(map.state().dimension());
@@ -237,12 +238,17 @@ std::string encode_server_state(const fusion::GlobalMap& map, const mission::Tra
   w.boolean(last_min_pivot.has_value());
   w.f64(last_min_pivot.value_or(0.0));
   w.i64(latest_utime);
+  w.count(taken_high_water.size());
+  for (const auto& [principal, seq] : taken_high_water) {
+    w.text(principal);
+    w.u64(seq);
+  }
   return out;
 }
 
 ServerState decode_server_state(const std::string& payload) {
   ArchiveReader r(payload.data(), payload.size(), "server state");
-  ServerState s{fusion::read_global_map(r), {}, {}, {}, 0.0, true, true, std::nullopt, 0};
+  ServerState s{fusion::read_global_map(r), {}, {}, {}, 0.0, true, true, std::nullopt, 0, {}};
   const std::size_t robots = r.count(12);
   for (std::size_t i = 0; i < robots; ++i) {
     const int robot_id = r.i32();
@@ -277,6 +283,12 @@ ServerState decode_server_state(const std::string& payload) {
   const double pivot = r.f64();
   if (has_pivot) s.last_min_pivot = pivot;
   s.latest_utime = r.i64();
+  const std::size_t signers = r.count(9);
+  for (std::size_t i = 0; i < signers; ++i) {
+    std::string principal = r.text();
+    if (!runtime::auth::is_valid_principal(principal)) r.fail("corrupt: invalid principal in the replay high-water marks");
+    s.taken_high_water[std::move(principal)] = r.u64();
+  }
   if (r.remaining() != 0) r.fail("corrupt: " + std::to_string(r.remaining()) + " bytes after the server state");
   return s;
 }

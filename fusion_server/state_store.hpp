@@ -18,12 +18,15 @@
 // magic "LMFSTATE", version kStateVersion, CRC-32 over everything; its payload
 // is u64 lsn (the last journal record reflected in it) followed by the
 // server's state (encode_server_state: the GlobalMap archive payload, the
-// TrajectoryBook, the fusion and sighting records of report.json).
+// TrajectoryBook, the fusion and sighting records of report.json, the
+// authentication high-water marks).
 //
 // Journal record: one event of an LCM event log (lcm-logplayer/lcm-spy format,
 // big-endian): sync word 0xEDA1DA01, i64 eventnum = lsn, i64 timestamp (wall
 // clock at receipt, us), i32 channel length, i32 data length, the channel the
-// message arrived on, data = the message bytes as received followed by a
+// message arrived on, data = the message bytes as received (an authenticated
+// server keeps the trailer: recovery reads its signer and seq back into the
+// replay windows and strips it before decoding) followed by a
 // 4-byte big-endian CRC-32 of (eventnum, timestamp, channel, message). LSNs are
 // 1, 2, 3, ... consecutive across files. (lmf processes would reject the
 // 4-byte trailer: the journal is a record, not something to replay on a bus.)
@@ -70,6 +73,7 @@
 
 #include "lmf/fusion/global_map.hpp"
 #include "lmf/mission/trajectory_book.hpp"
+#include "runtime/auth.hpp"
 #include "runtime/messages.hpp"
 
 namespace lmf::server {
@@ -78,8 +82,10 @@ namespace lmf::server {
 // reports carry footprint_segments_removed. 4: archive version 4 (crossing
 // segments), fusion reports carry crossing_segments_removed. 5: the global map
 // inside is kGlobalMapArchiveVersion 5 (no transient re-entrancy flag). 6: archive
-// version 6 (frame registration), fusion reports carry its outcome.
-inline constexpr std::uint32_t kStateVersion = 6;
+// version 6 (frame registration), fusion reports carry its outcome. 7: the
+// authentication high-water marks (per signer, the highest seq of an input
+// applied) follow the server state.
+inline constexpr std::uint32_t kStateVersion = 7;
 
 // The state directory cannot be used (in use, unreadable, every snapshot corrupt, I/O error).
 class StateError : public std::runtime_error {
@@ -109,6 +115,7 @@ struct ServerState {
   bool covariance_always_ok = true;
   std::optional<double> last_min_pivot;
   std::int64_t latest_utime = 0;
+  runtime::auth::HighWater taken_high_water;  // empty unless signatures were verified
 };
 
 // The server state's bytes (the snapshot payload after the lsn) and back;
@@ -116,14 +123,15 @@ struct ServerState {
 std::string encode_server_state(const fusion::GlobalMap& map, const mission::TrajectoryBook& book,
                                 const std::vector<FusionRecord>& fusions, const std::vector<SightingRecord>& sightings,
                                 double fusion_ms_sum, bool last_covariance_ok, bool covariance_always_ok,
-                                const std::optional<double>& last_min_pivot, std::int64_t latest_utime);
+                                const std::optional<double>& last_min_pivot, std::int64_t latest_utime,
+                                const runtime::auth::HighWater& taken_high_water);
 ServerState decode_server_state(const std::string& payload);
 
 struct JournalRecord {
   std::int64_t lsn = 0;
   std::int64_t utime = 0;  // wall clock at receipt, us
   std::string channel;
-  std::string data;        // the message as received (trailer removed)
+  std::string data;        // the message as received (with its authentication trailer when verified)
 };
 
 struct Recovery {

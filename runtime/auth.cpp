@@ -411,6 +411,35 @@ void ReplayWindow::accept(std::uint64_t seq) {
   set(seq);
 }
 
+void ReplayWindow::refuse_through(std::uint64_t seq) {
+  if (!highest_ || seq > *highest_) {
+    highest_ = seq;
+    std::fill(bits_.begin(), bits_.end(), ~std::uint64_t{0});
+    return;
+  }
+  if (*highest_ - seq >= width()) return;  // already too old
+  const std::uint64_t oldest_in_window = *highest_ - (width() - 1);
+  for (std::uint64_t s = seq;; --s) {
+    set(s);
+    if (s == oldest_in_window || s == 0) break;
+  }
+}
+
+std::optional<SignedBy> signed_by(std::span<const std::uint8_t> message) {
+  const std::optional<TrailerView> trailer = parse_trailer(message);
+  if (!trailer) return std::nullopt;
+  return SignedBy{std::string(trailer->principal), trailer->seq};
+}
+
+void raise(HighWater& high_water, const SignedBy& signer) {
+  const auto it = high_water.find(signer.principal);
+  if (it == high_water.end()) {
+    high_water.emplace(signer.principal, signer.seq);
+  } else {
+    it->second = std::max(it->second, signer.seq);
+  }
+}
+
 // ---- authorization ------------------------------------------------------------
 
 namespace {
@@ -555,6 +584,12 @@ Checked<std::span<const std::uint8_t>> Verifier::verify(std::string_view channel
   if (auto refused = authorize(trailer->principal, payload)) return *std::move(refused);
   ++verified_;
   return payload;
+}
+
+void Verifier::refuse_through(const HighWater& high_water) {
+  for (const auto& [principal, seq] : high_water) {
+    windows_.try_emplace(principal, replay_window_).first->second.refuse_through(seq);
+  }
 }
 
 std::uint64_t wall_clock_first_seq() {

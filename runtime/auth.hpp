@@ -21,7 +21,12 @@
 // it averaged more than one message per microsecond or its clock was set
 // back). A receiver keeps, per principal, a sliding window of the last
 // `replay_window` sequence numbers (like IPsec/DTLS): reordering within the
-// window is accepted, a repeat or anything older is refused.
+// window is accepted, a repeat or anything older is refused. A receiver that
+// restarts can be given the highest number it took from each sender before
+// (its HighWater, which a server persists with its state): everything up to
+// it is then refused, so a message captured before the restart cannot be
+// replayed after it. A sender never reuses a number (a resend is signed anew),
+// so this refuses nothing an honest sender still has to say.
 //
 // Authorization: the verified sender must be allowed to say what the message
 // says, decided from the LCM type fingerprint at the start of the payload:
@@ -169,6 +174,21 @@ std::optional<TrailerView> parse_trailer(std::span<const std::uint8_t> message);
 std::size_t unverified_payload_size(const void* data, std::size_t size);
 
 // ---- replay window -------------------------------------------------------------
+// Per sender, the highest sequence number taken: the durable form of a
+// receiver's replay windows.
+using HighWater = std::map<std::string, std::uint64_t, std::less<>>;
+
+// Who signed a message, as its trailer says.
+struct SignedBy {
+  std::string principal;
+  std::uint64_t seq = 0;
+};
+// nullopt unless `message` ends with a well-formed trailer (NOT a verification).
+std::optional<SignedBy> signed_by(std::span<const std::uint8_t> message);
+
+// Raises high_water[principal] to seq (adds it if absent).
+void raise(HighWater& high_water, const SignedBy& signer);
+
 // The anti-replay window of one sender (RFC 4303 §3.4.3 style): the highest
 // sequence number seen and a bitmap of the `width` numbers up to it.
 class ReplayWindow {
@@ -180,6 +200,9 @@ class ReplayWindow {
   Verdict check(std::uint64_t seq) const;
   // Records `seq` as seen; requires check(seq) == kFresh (asserts).
   void accept(std::uint64_t seq);
+  // Marks every number up to `seq` as seen (those already in the window and
+  // older ones alike): a window restored from a high-water mark.
+  void refuse_through(std::uint64_t seq);
   std::optional<std::uint64_t> highest() const { return highest_; }
   std::size_t width() const { return bits_.size() * 64; }
 
@@ -236,6 +259,10 @@ class Verifier {
   Checked<std::span<const std::uint8_t>> verify(std::string_view channel, std::span<const std::uint8_t> message);
 
   std::int64_t verified() const { return verified_; }  // messages accepted so far
+
+  // From now on refuses, per sender, every number up to its high-water mark
+  // (restored state of a restarted receiver); senders not named are unchanged.
+  void refuse_through(const HighWater& high_water);
 
  private:
   std::shared_ptr<const KeyRing> keys_;

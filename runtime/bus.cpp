@@ -104,10 +104,14 @@ void Bus::dispatch(const lcm::ReceiveBuffer* buffer, const std::string& channel,
     } else {
       size = auth::unverified_payload_size(message.data(), message.size());
     }
+    bus.as_received_ = message;
     subscription->handler(channel, buffer->data, size);
+    bus.as_received_ = {};
   } catch (const std::exception& e) {
+    bus.as_received_ = {};
     bus.rejects_.record(Rejection{RejectReason::kHandlerError, e.what()}, channel);
   } catch (...) {
+    bus.as_received_ = {};
     bus.rejects_.record(Rejection{RejectReason::kHandlerError, "unknown exception"}, channel);
   }
 }
@@ -122,6 +126,10 @@ int Bus::handle_pending(int max_messages) {
     ++handled;
   }
   return handled;
+}
+
+void Bus::refuse_through(const auth::HighWater& high_water) {
+  if (verifier_) verifier_->refuse_through(high_water);
 }
 
 int Bus::fileno() { return good() ? lcm_->getFileno() : -1; }

@@ -27,6 +27,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -112,6 +113,13 @@ class Bus {
   bool authenticated() const { return verifier_ != nullptr; }
   // Messages that passed verification (0 without authentication).
   std::int64_t messages_verified() const { return verifier_ ? verifier_->verified() : 0; }
+  // A restarted receiver's persisted state: refuses every message up to each
+  // sender's mark (auth::Verifier::refuse_through). No-op without authentication.
+  void refuse_through(const auth::HighWater& high_water);
+
+  // Inside a handler: the message being handled as it arrived, authentication
+  // trailer included (the handler's bytes are its prefix). Empty elsewhere.
+  std::span<const std::uint8_t> message_as_received() const { return as_received_; }
 
   // The underlying LCM instance, for what the Bus does not wrap (e.g. queue
   // capacity). Bypasses authentication both ways.
@@ -128,6 +136,7 @@ class Bus {
   std::unique_ptr<auth::Signer> signer_;
   std::unique_ptr<auth::Verifier> verifier_;
   std::vector<std::uint8_t> signed_;  // reused buffer: payload + trailer
+  std::span<const std::uint8_t> as_received_;  // set while a handler runs
   std::uint64_t first_seq_ = 0;
   std::vector<std::unique_ptr<Subscription>> subscriptions_;
   int next_id_ = 1;

@@ -50,7 +50,7 @@ struct World {
     }
   }
   std::string payload() const {
-    return lmf::server::encode_server_state(map, book, fusions, {}, 0.0, true, true, std::nullopt, 0);
+    return lmf::server::encode_server_state(map, book, fusions, {}, 0.0, true, true, std::nullopt, 0, {});
   }
 };
 

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <tuple>
@@ -21,6 +22,7 @@
 #include "fusion_server/server_node.hpp"
 #include "fusion_server/state_store.hpp"
 #include "lmf/fusion/global_map_archive.hpp"
+#include "runtime/auth.hpp"
 #include "runtime/bus.hpp"
 #include "runtime/channels.hpp"
 #include "runtime/convert.hpp"
@@ -72,7 +74,7 @@ std::string payload_with(int fused) {
     map.fuse(make_map(0, seq));
     book.add(make_map(0, seq));
   }
-  return lmf::server::encode_server_state(map, book, {}, {}, 0.0, true, true, std::nullopt, 0);
+  return lmf::server::encode_server_state(map, book, {}, {}, 0.0, true, true, std::nullopt, 0, {});
 }
 
 int fused_in(const Recovery& r) {
@@ -290,13 +292,15 @@ TEST(StateStoreTest, ServerStatePayloadRoundTrips) {
     book.add(make_map(0, seq));
   }
   std::vector<lmf::server::SightingRecord> sightings = {{make_sighting(0, 1, 7), "pending"}};
+  const lmf::runtime::auth::HighWater high_water = {{"player", 1'700'000'000'000'123}, {"robot1", 42}};
   const std::string bytes =
-      lmf::server::encode_server_state(map, book, fusions, sightings, 12.5, false, true, 0.25, 99);
+      lmf::server::encode_server_state(map, book, fusions, sightings, 12.5, false, true, 0.25, 99, high_water);
   lmf::server::ServerState s = lmf::server::decode_server_state(bytes);
   EXPECT_EQ(lmf::server::encode_server_state(s.map, s.book, s.fusions, s.sightings, s.fusion_ms_sum,
                                              s.last_covariance_ok, s.covariance_always_ok, s.last_min_pivot,
-                                             s.latest_utime),
+                                             s.latest_utime, s.taken_high_water),
             bytes);
+  EXPECT_EQ(s.taken_high_water, high_water);
   EXPECT_EQ(s.fusions.size(), 3u);
   EXPECT_EQ(s.sightings[0].status, "pending");
   EXPECT_EQ(s.latest_utime, 99);
@@ -392,6 +396,80 @@ TEST_F(ServerStateTest, ARestartedServerContinuesBitIdentically) {
   EXPECT_EQ(third.stats().sightings_applied, 0);
   third.shutdown(false);
   EXPECT_EQ(archive(*third.map_after_shutdown()), final_live);
+}
+
+// An authenticated server persists, per signer, the highest sequence number
+// of what it took (snapshot) and re-reads the signers of the journal: after a
+// restart, a capture of any earlier message is refused by the replay window
+// (auth_replayed) before the node sees it, while the senders' new messages,
+// signed with fresh numbers, are taken as before.
+TEST_F(ServerStateTest, ACaptureReplayedAfterARestartIsRefusedByTheReplayWindow) {
+  namespace auth = rt::auth;
+  const auto keys = auth::make_system_keys({0, 1});
+  const auto config_of = [&](const std::string& principal) {
+    return auth::Config{principal, std::make_shared<const auth::KeyRing>(keys.at(principal))};
+  };
+  rt::Bus robot(bus_, config_of(auth::robot_principal(0)));
+  rt::Bus player(bus_, config_of("player"));
+
+  // The wire, as an eavesdropper (or lcm-logger) sees it.
+  struct Wire {
+    std::string channel;
+    std::vector<std::uint8_t> bytes;
+  };
+  std::vector<Wire> captured;
+  for (const std::string& channel : {channels_.local_map(), channels_.sighting()}) {
+    bus_.subscribe(channel, [&](const std::string& on, const void*, std::size_t) {
+      const auto heard = bus_.message_as_received();
+      captured.push_back({on, {heard.begin(), heard.end()}});
+    });
+  }
+  std::vector<Wire> before_restart;
+  const auto replay_capture = [&] {
+    for (const Wire& w : before_restart) {
+      ASSERT_EQ(bus_.lcm().publish(w.channel, w.bytes.data(), static_cast<unsigned>(w.bytes.size())), 0);
+    }
+  };
+
+  const fs::path state = fresh_dir("server_auth_live");
+  const fs::path crashed = fresh_dir("server_auth_crashed");
+  {
+    rt::Bus server_bus(bus_, config_of("server"));
+    lmf::server::ServerNode live(server_bus, loop_, channels_, options(state, "auth_live"));
+    for (int seq = 0; seq < 2; ++seq) robot.publish(channels_.local_map(), to_msg(make_map(0, seq)));
+    player.publish(channels_.sighting(), to_msg(make_sighting(0, 1, 2'500'000)));
+    ASSERT_TRUE(run_until([&] { return live.stats().acks_fused == 2 && sighting_acks_.size() == 1; }));
+    settle(live);
+    ASSERT_EQ(captured.size(), 3u);
+    ASSERT_EQ(server_bus.messages_verified(), 3);
+    // What kill -9 leaves now: the start snapshot, everything since in the journal.
+    fs::copy(state, crashed, fs::copy_options::recursive);
+    fs::remove(crashed / "lock");
+    live.shutdown(false);  // a final snapshot: the marks are in it
+  }
+  before_restart = captured;
+
+  for (const fs::path& dir : {crashed, state}) {
+    SCOPED_TRACE("restarted on " + dir.filename().string());
+    const fs::path copy = fresh_dir(dir.filename().string() + "_restart");
+    fs::copy(dir, copy, fs::copy_options::recursive);
+    rt::Bus server_bus(bus_, config_of("server"));  // a new process: its windows start empty
+    lmf::server::ServerNode restarted(server_bus, loop_, channels_, options(copy, copy.filename().string()));
+    if (dir == crashed) {
+      EXPECT_EQ(restarted.recovery().replayed_local_maps, 2);
+    }
+    replay_capture();
+    ASSERT_TRUE(run_until([&] { return server_bus.rejects().count(rt::RejectReason::kAuthReplayed) == 3; }));
+    settle(restarted);
+    EXPECT_EQ(lmf::testing::reject_total(restarted), 3) << "refused by the windows, never seen by the node";
+    EXPECT_EQ(restarted.stats().local_maps_received, 0);
+    EXPECT_EQ(restarted.stats().sightings_received, 0);
+    // The robot goes on, its messages signed with new numbers.
+    acks_.clear();
+    robot.publish(channels_.local_map(), to_msg(make_map(0, 2)));
+    ASSERT_TRUE(run_until([&] { return count_acks(0, 2, Status::kFused) == 1; }));
+    restarted.shutdown(false);
+  }
 }
 
 TEST_F(ServerStateTest, AStateMadeWithAnotherConfigIsRefused) {

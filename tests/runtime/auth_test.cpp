@@ -382,6 +382,55 @@ TEST(AuthReplayWindow, ShuffledSequenceMatchesASetReference) {
   }
 }
 
+TEST(AuthReplayWindow, RefuseThroughMarksEverythingUpToTheMark) {
+  auth::ReplayWindow fresh(64);
+  fresh.refuse_through(1000);  // a restored window: all of it seen
+  EXPECT_EQ(fresh.highest(), 1000u);
+  for (std::uint64_t seq = 937; seq <= 1000; ++seq) EXPECT_EQ(fresh.check(seq), auth::ReplayWindow::Verdict::kReplayed);
+  EXPECT_EQ(fresh.check(936), auth::ReplayWindow::Verdict::kTooOld);
+  EXPECT_EQ(fresh.check(1001), auth::ReplayWindow::Verdict::kFresh);
+
+  auth::ReplayWindow running(64);  // behind what it already saw: the gaps below the mark close
+  running.accept(1000);
+  running.refuse_through(990);
+  for (std::uint64_t seq = 937; seq <= 990; ++seq) EXPECT_EQ(running.check(seq), auth::ReplayWindow::Verdict::kReplayed);
+  for (std::uint64_t seq = 991; seq < 1000; ++seq) EXPECT_EQ(running.check(seq), auth::ReplayWindow::Verdict::kFresh);
+  running.refuse_through(5);  // long gone: nothing changes
+  EXPECT_EQ(running.check(995), auth::ReplayWindow::Verdict::kFresh);
+
+  auth::ReplayWindow small(64);  // marks near zero do not wrap
+  small.refuse_through(3);
+  for (std::uint64_t seq = 0; seq <= 3; ++seq) EXPECT_EQ(small.check(seq), auth::ReplayWindow::Verdict::kReplayed);
+  EXPECT_EQ(small.check(4), auth::ReplayWindow::Verdict::kFresh);
+}
+
+TEST(AuthVerifier, RefusesEverythingUpToARestoredHighWaterMark) {
+  const auto keys = ring({{"server", kServer}, {"robot0", kRobot0}});
+  auth::Signer signer("robot0", kRobot0, 1'700'000'000'000'000);
+  std::vector<Bytes> sent(4);
+  for (std::size_t i = 0; i < sent.size(); ++i) {
+    signer.sign("LMF_LOCAL_MAP", rt::encode_message(a_local_map(0, static_cast<std::int64_t>(i))), sent[i]);
+  }
+  auth::Verifier before(keys, 64);
+  auth::HighWater marks;
+  for (std::size_t i = 0; i < 3; ++i) {
+    ASSERT_TRUE(before.verify("LMF_LOCAL_MAP", sent[i]).ok());
+    const auto signer_of = auth::signed_by(sent[i]);
+    ASSERT_TRUE(signer_of.has_value());
+    EXPECT_EQ(signer_of->principal, "robot0");
+    auth::raise(marks, *signer_of);
+  }
+  EXPECT_EQ(marks, (auth::HighWater{{"robot0", 1'700'000'000'000'002}}));
+
+  auth::Verifier restarted(keys, 64);
+  restarted.refuse_through(marks);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(reason_of(restarted.verify("LMF_LOCAL_MAP", sent[i])), RejectReason::kAuthReplayed) << i;
+  }
+  EXPECT_TRUE(restarted.verify("LMF_LOCAL_MAP", sent[3]).ok());
+  EXPECT_FALSE(auth::signed_by(rt::encode_message(a_local_map(0, 0))).has_value());
+}
+
 TEST(AuthVerifier, RejectsReplaysAndTolerantOfReordering) {
   const auto keys = ring({{"server", kServer}, {"robot0", kRobot0}});
   auth::Verifier verifier(keys, 64);
