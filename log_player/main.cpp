@@ -33,6 +33,8 @@ int main(int argc, char** argv) {
   int ack_timeout_ms = 2000;
   int min_ack_timeout_ms = 5;
   int max_attempts = 10;
+  std::size_t max_pending_sightings = 1000;
+  int end_wait_ms = 0;
   std::uint64_t seed = 0;
   std::string config_file;
   int start_delay_ms = 500;
@@ -53,8 +55,13 @@ int main(int argc, char** argv) {
       ("min-ack-timeout-ms", po::value(&min_ack_timeout_ms)->default_value(min_ack_timeout_ms),
        "lockstep: the shortest wait before resending a scan (> 0; at most --ack-timeout-ms)")
       ("max-attempts", po::value(&max_attempts)->default_value(max_attempts),
-       "sends of one sighting before giving up on its answer from lmf-server, and (lockstep) of one scan before "
-       "going on without its ack; 0: no limit (resend until answered, e.g. while lmf-server may be restarted)")
+       "lockstep: sends of one scan before going on without its ack; 0: no limit")
+      ("max-pending-sightings", po::value(&max_pending_sightings)->default_value(max_pending_sightings),
+       "sightings are resent until lmf-server answers, however long it is down; at most this many wait at once "
+       "(beyond, the oldest is given up)")
+      ("end-wait-ms", po::value(&end_wait_ms)->default_value(end_wait_ms),
+       "after the last scan, how long sightings lmf-server has not answered may still wait before they are given "
+       "up and the mission end is sent; 0: until answered")
       ("seed", po::value(&seed), "seed of the sighting noise (overrides the config's sighting_noise.seed)")
       ("config", po::value(&config_file), "mission JSON config; its sighting_noise section is used")
       ("start-delay-ms", po::value(&start_delay_ms)->default_value(start_delay_ms),
@@ -84,6 +91,8 @@ int main(int argc, char** argv) {
     options.ack_timeout = std::chrono::milliseconds(ack_timeout_ms);
     options.min_ack_timeout = std::chrono::milliseconds(min_ack_timeout_ms);
     options.max_attempts = max_attempts;
+    options.max_pending_sightings = max_pending_sightings;
+    options.end_wait = std::chrono::milliseconds(end_wait_ms);
     options.start_delay = std::chrono::milliseconds(start_delay_ms);
     if (vm.count("quiet") == 0u) {
       options.progress = ::isatty(STDERR_FILENO) != 0 ? lmf::log_player::PlayerOptions::Progress::kLine

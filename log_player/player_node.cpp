@@ -25,6 +25,8 @@ void PlayerOptions::validate() const {
   if (min_ack_timeout.count() <= 0) throw std::invalid_argument("min ack timeout must be > 0 ms");
   if (!(drop_scans >= 0.0 && drop_scans < 1.0)) throw std::invalid_argument("drop_scans must be in [0, 1)");
   if (max_attempts < 0) throw std::invalid_argument("max attempts must be >= 0 (0: no limit)");
+  if (max_pending_sightings == 0) throw std::invalid_argument("max pending sightings must be > 0");
+  if (end_wait.count() < 0) throw std::invalid_argument("end wait must be >= 0 ms (0: until answered)");
   if (start_delay.count() < 0) throw std::invalid_argument("start delay must be >= 0 ms");
   if (mission_end_interval.count() <= 0) throw std::invalid_argument("mission end interval must be > 0 ms");
   if (mission_end_repeats < 1) throw std::invalid_argument("mission end repeats must be >= 1");
@@ -78,6 +80,7 @@ PlayerNode::~PlayerNode() {
   if (ack_timer_) loop_.cancel(*ack_timer_);
   if (step_timer_) loop_.cancel(*step_timer_);
   if (sighting_timer_) loop_.cancel(*sighting_timer_);
+  if (end_wait_timer_) loop_.cancel(*end_wait_timer_);
   for (const int id : timers_) loop_.cancel(id);
   for (const int id : subscriptions_) bus_.unsubscribe(id);
 }
@@ -325,6 +328,7 @@ PlayerNode::SightingOutcome PlayerNode::try_sighting(const mission::SightingInpu
     return skip("robot " + to_string(s.observer_id) + " sighted robot " + to_string(s.observed_id) + " twice at " +
                 to_string(s.utime) + " us");
   }
+  if (pending_sightings_.size() >= options_.max_pending_sightings) give_up_oldest_sighting();
   PendingSighting& pending = pending_sightings_[key];
   pending.message = std::move(msg.value());
   pending.attempts = 1;
@@ -335,38 +339,56 @@ PlayerNode::SightingOutcome PlayerNode::try_sighting(const mission::SightingInpu
   return SightingOutcome::kPublished;
 }
 
+void PlayerNode::give_up_oldest_sighting() {
+  const auto oldest = pending_sightings_.begin();
+  ++counters_.sightings_unanswered;
+  if (counters_.sightings_unanswered <= 10 || counters_.sightings_unanswered % 100 == 0) {
+    const auto& [utime, observer, observed] = oldest->first;
+    std::cerr << "lmf-player: " << options_.max_pending_sightings << " sightings unanswered; the sighting of robot "
+              << observed << " by robot " << observer << " at " << utime << " us given up after " << oldest->second.attempts
+              << " sends (" << counters_.sightings_unanswered << " so far; is lmf-server running?)\n";
+  }
+  pending_sightings_.erase(oldest);
+}
+
 void PlayerNode::resend_sightings() {
   sighting_timer_.reset();
-  for (auto it = pending_sightings_.begin(); it != pending_sightings_.end();) {
-    PendingSighting& p = it->second;
-    if (options_.may_send_again(p.attempts)) {
-      ++p.attempts;
-      ++counters_.sighting_resends;
-      bus_.publish(options_.channels.sighting(), p.message);
-      ++it;
-      continue;
-    }
-    ++counters_.sightings_unanswered;
-    if (counters_.sightings_unanswered <= 10) {
-      const auto& [utime, observer, observed] = it->first;
-      std::cerr << "lmf-player: no answer to the sighting of robot " << observed << " by robot " << observer
-                << " at " << utime << " us after " << p.attempts << " sends; given up (is lmf-server running?)\n";
-    }
-    it = pending_sightings_.erase(it);
+  int oldest = 0;
+  for (auto& [key, p] : pending_sightings_) {
+    ++p.attempts;
+    ++counters_.sighting_resends;
+    bus_.publish(options_.channels.sighting(), p.message);
+    oldest = std::max(oldest, p.attempts);
   }
   if (!pending_sightings_.empty()) {
-    // Without a limit nothing is ever given up: say so now and then, so a
+    // Nothing is given up for want of an answer: say so now and then, so a
     // player waiting for a server that is not there does not wait silently.
-    int oldest = 0;
-    for (const auto& [key, p] : pending_sightings_) oldest = std::max(oldest, p.attempts);
-    if (options_.max_attempts == 0 && oldest % 10 == 0) {
+    if (oldest % 10 == 0) {
       std::cerr << "lmf-player: " << pending_sightings_.size() << " sighting(s) unanswered, the oldest after " << oldest
                 << " sends; resending every " << options_.ack_timeout.count() << " ms (is lmf-server running?)\n";
     }
     sighting_timer_ = loop_.after(options_.ack_timeout, [this] { resend_sightings(); });
-  } else if (ending_) {
-    send_mission_end();
+  } else {
+    on_sightings_answered();
   }
+}
+
+void PlayerNode::give_up_pending_sightings() {
+  end_wait_timer_.reset();
+  counters_.sightings_unanswered += static_cast<std::int64_t>(pending_sightings_.size());
+  std::cerr << "lmf-player: " << pending_sightings_.size() << " sighting(s) still unanswered "
+            << options_.end_wait.count() << " ms after the replay; given up (is lmf-server running?)\n";
+  pending_sightings_.clear();
+  on_sightings_answered();
+}
+
+void PlayerNode::on_sightings_answered() {
+  if (sighting_timer_) loop_.cancel(*sighting_timer_);
+  sighting_timer_.reset();
+  if (!ending_) return;
+  if (end_wait_timer_) loop_.cancel(*end_wait_timer_);
+  end_wait_timer_.reset();
+  send_mission_end();
 }
 
 void PlayerNode::on_sighting_ack(const std::string& channel, const void* data, std::size_t size) {
@@ -397,10 +419,7 @@ void PlayerNode::on_sighting_ack(const std::string& channel, const void* data, s
     ++counters_.sightings_acked;
   }
   pending_sightings_.erase(it);
-  if (!pending_sightings_.empty()) return;
-  if (sighting_timer_) loop_.cancel(*sighting_timer_);
-  sighting_timer_.reset();
-  if (ending_) send_mission_end();
+  if (pending_sightings_.empty()) on_sightings_answered();
 }
 
 // ---- the end ----------------------------------------------------------------------------------------
@@ -410,7 +429,11 @@ void PlayerNode::finish() {
   ack_timer_.reset();
   report_progress(true);
   ending_ = true;
-  if (pending_sightings_.empty()) send_mission_end();  // else once the last one is answered or given up
+  if (pending_sightings_.empty()) {
+    send_mission_end();
+  } else if (options_.end_wait.count() > 0) {  // else once the last one is answered or given up
+    end_wait_timer_ = loop_.after(options_.end_wait, [this] { give_up_pending_sightings(); });
+  }
 }
 
 void PlayerNode::send_mission_end() {

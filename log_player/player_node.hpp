@@ -6,11 +6,12 @@
 //   LMF_SIGHTING    out  robot B seen by robot A, with each robot's local map
 //                        seq, x_L? and covariance taken from the ack of its last
 //                        scan at or before the sighting's time; resent until
-//                        the server answers, at most max_attempts sends (0: no
-//                        limit, for a server that may be down longer): every
+//                        the server answers, however long it is down: every
 //                        ack_timeout, all unanswered ones in time order (a
-//                        server started late gets them in the order lmf-offline
-//                        applies them)
+//                        server started late or restarted gets them in the
+//                        order lmf-offline applies them). Bounded by a queue,
+//                        not by a send count: once max_pending_sightings wait,
+//                        publishing another gives up the oldest
 //   LMF_SIGHTING_ACK in  the server's answer to a sighting: stop resending
 //   LMF_MISSION_END out  at the end, repeated mission_end_repeats times
 //
@@ -33,7 +34,9 @@
 // A sighting whose robot has not scanned yet (no local frame to relate) is
 // skipped, as lmf-offline does. The mission end goes out once every published
 // sighting was answered or given up (a server that was down when a sighting
-// went out still gets it: robots join only through sightings).
+// went out still gets it: robots join only through sightings); while it waits,
+// the player says on stderr every 10 resends what it still waits for, and
+// after end_wait (if set) it gives the rest up.
 //
 // Progress goes to an optional stream: one refreshed line (a terminal) or a
 // line every 10 % (anything else). Threading: everything runs on the loop's thread.
@@ -68,7 +71,12 @@ struct PlayerOptions {
   double rate = 1.0;                                // --rate pacing: log time / rate (> 0)
   std::chrono::milliseconds ack_timeout{2000};      // > 0: the longest resend wait
   std::chrono::milliseconds min_ack_timeout{5};     // > 0: the shortest (at most ack_timeout)
-  int max_attempts = 10;  // sends of one sighting, or (lockstep) of one scan, before giving up (0: no limit)
+  int max_attempts = 10;  // lockstep: sends of one scan before going on without its ack (0: no limit)
+  // Sightings sent and not answered yet, at most (> 0); beyond, the oldest is given up.
+  std::size_t max_pending_sightings = 1000;
+  // After the last scan, how long sightings still unanswered may wait before
+  // they are given up and the mission end goes out (>= 0; 0: until answered).
+  std::chrono::milliseconds end_wait{0};
   std::chrono::milliseconds start_delay{0};         // before the first scan (subscribers starting)
   std::chrono::milliseconds mission_end_interval{200};
   int mission_end_repeats = 5;                      // >= 1
@@ -100,7 +108,7 @@ struct PlayerCounters {
   std::int64_t sighting_resends = 0;       // sends after an ack_timeout without answer
   std::int64_t sightings_acked = 0;        // answered APPLIED or DUPLICATE
   std::int64_t sightings_rejected = 0;     // answered REJECTED (the server refused it)
-  std::int64_t sightings_unanswered = 0;   // no answer after max_attempts sends
+  std::int64_t sightings_unanswered = 0;   // given up unanswered: the queue was full, or end_wait passed
   std::int64_t sighting_acks_duplicate = 0;  // answers to a sighting already answered
   std::int64_t mission_end_sent = 0;
 };
@@ -150,6 +158,9 @@ class PlayerNode {
   SightingOutcome try_sighting(const mission::SightingInput& sighting, bool allow_fallback);
   using SightingKey = std::tuple<std::int64_t, int, int>;  // (utime, observer, observed)
   void resend_sightings();
+  void give_up_oldest_sighting();  // the queue of pending sightings is full
+  void give_up_pending_sightings();  // end_wait passed after the replay
+  void on_sightings_answered();  // none pending any more
   std::optional<runtime::ScanAck> ack_at_or_before(std::size_t robot, std::int64_t utime, bool allow_fallback,
                                                    bool* approximate) const;
   void finish();
@@ -183,6 +194,7 @@ class PlayerNode {
   };
   std::map<SightingKey, PendingSighting> pending_sightings_;  // in time order
   std::optional<int> sighting_timer_;
+  std::optional<int> end_wait_timer_;
   std::set<SightingKey> published_sightings_;
   bool ending_ = false;  // the replay is over; mission_end_t once no sighting is pending
 

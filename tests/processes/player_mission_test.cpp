@@ -251,33 +251,60 @@ TEST_F(PlayerMission, TheMissionEndWaitsForTheLastSightingAnswer) {
   EXPECT_TRUE(s->server->map().is_joined(1));
 }
 
-// Without an answer the player gives up after max_attempts sends and still ends the mission.
-TEST_F(PlayerMission, GivesUpOnAnUnansweredSightingAndStillEnds) {
+// Unanswered sightings are bounded by a queue, not by a send count: with room
+// for one, publishing the next gives the oldest up; the last one still waits
+// (and so does the mission end) while the server stays silent.
+TEST_F(PlayerMission, AFullQueueOfUnansweredSightingsGivesUpTheOldest) {
+  ASSERT_GE(inputs_->sightings.size(), 2u);
   PlayerOptions options = lockstep_options();
-  options.ack_timeout = 30ms;
-  options.max_attempts = 3;
+  options.ack_timeout = 5ms;
+  options.max_pending_sightings = 1;
   auto s = make_system(options);
-  s->server->ignore_first_sighting_transmissions(1000);
+  s->server->ignore_first_sighting_transmissions(1'000'000);
+  s->player->start();
+  const auto published_all = [&] {
+    const auto& c = s->player->counters();
+    return c.sightings_published + c.sightings_skipped == static_cast<std::int64_t>(inputs_->sightings.size()) &&
+           c.scans_acked == c.scans_total;
+  };
+  ASSERT_TRUE(run_until(s->loop, published_all, 60s)) << s->player->summary();
+  s->loop.run_for(20 * options.ack_timeout);  // well beyond the old limit of 10 sends
+  const auto& pc = s->player->counters();
+  ASSERT_GE(pc.sightings_published, 2);
+  EXPECT_EQ(pc.sightings_unanswered, pc.sightings_published - 1);
+  EXPECT_EQ(pc.sightings_acked, 0);
+  EXPECT_FALSE(s->player->finished()) << "the mission end waits for the last sighting's answer";
+  EXPECT_EQ(pc.mission_end_sent, 0);
+}
+
+// With an end wait, the sightings still unanswered that long after the last
+// scan are given up, and the mission ends.
+TEST_F(PlayerMission, AfterTheEndWaitTheUnansweredSightingsAreGivenUpAndTheMissionEnds) {
+  PlayerOptions options = lockstep_options();
+  options.ack_timeout = 5ms;
+  options.end_wait = 100ms;
+  auto s = make_system(options);
+  s->server->ignore_first_sighting_transmissions(1'000'000);
   s->player->start();
   ASSERT_TRUE(run_until(s->loop, [&] { return s->player->finished(); }, 60s)) << s->player->summary();
   const auto& pc = s->player->counters();
   ASSERT_GT(pc.sightings_published, 0);
   EXPECT_EQ(pc.sightings_unanswered, pc.sightings_published);
-  EXPECT_EQ(pc.sighting_resends, 2 * pc.sightings_published);
+  EXPECT_GE(pc.sighting_resends, pc.sightings_published * (options.end_wait / options.ack_timeout) / 2);
   EXPECT_EQ(pc.sightings_acked, 0);
   EXPECT_EQ(pc.mission_end_sent, options.mission_end_repeats);
   EXPECT_EQ(s->server->sightings(), 0);
-  EXPECT_FALSE(s->server->map().is_joined(1));
 }
 
-// With max_attempts 0 a sighting is resent until the server answers, however
-// long that takes (a server restarted after more than max_attempts x ack_timeout).
-TEST_F(PlayerMission, WithoutALimitASightingIsResentUntilAnswered) {
+// A sighting is resent until the server answers, however long that takes (a
+// server down for far more than --max-attempts x --ack-timeout-ms), with the
+// default options otherwise.
+TEST_F(PlayerMission, ASightingIsResentUntilAnsweredHoweverLong) {
   PlayerOptions options = lockstep_options();
   options.ack_timeout = 5ms;
-  options.max_attempts = 0;
+  ASSERT_GT(options.max_attempts, 0);
   auto s = make_system(options);
-  const int ignored = 60;  // far beyond the default 10 sends
+  const int ignored = 6 * options.max_attempts;
   s->server->ignore_first_sighting_transmissions(ignored);
   s->player->start();
   ASSERT_TRUE(run_until(s->loop, [&] { return s->all_done(); }, 60s)) << s->player->summary();
@@ -425,6 +452,12 @@ TEST(PlayerNodeOptions, AreValidated) {
   bad = PlayerOptions();
   bad.max_attempts = -1;
   EXPECT_THROW(PlayerNode(bus, loop, inputs, bad), std::invalid_argument) << "max_attempts < 0";
+  bad = PlayerOptions();
+  bad.max_pending_sightings = 0;
+  EXPECT_THROW(PlayerNode(bus, loop, inputs, bad), std::invalid_argument) << "max_pending_sightings 0";
+  bad = PlayerOptions();
+  bad.end_wait = -1ms;
+  EXPECT_THROW(PlayerNode(bus, loop, inputs, bad), std::invalid_argument) << "end_wait < 0";
   PlayerOptions limits;
   limits.max_attempts = 0;
   EXPECT_TRUE(limits.may_send_again(1000000)) << "0: no limit";

@@ -2,7 +2,8 @@
 # The real lmf-agent (x2) and lmf-player binaries over UDP multicast inside a
 # private network namespace (scripts/lib/netns.sh), no server: the player
 # replays an lmf-sim folder in lockstep, the agents ack every scan, then get
-# mission_end_t and are stopped with SIGTERM.
+# mission_end_t (sent once the unanswered sightings are given up after
+# --end-wait-ms) and are stopped with SIGTERM.
 # Usage: player_netns.sh AGENT PLAYER SIM_DIR
 # Exit: 0 passed, 77 namespaces not permitted here (skip), other: failure.
 set -u
@@ -20,7 +21,7 @@ lmf_netns_exec bash -c '
   echo "inside: $(ip -o link | wc -l) interface(s), LCM_DEFAULT_URL=$LCM_DEFAULT_URL"
   "$agent" --robot-id 0 --resend-interval-ms 200 & a0=$!
   "$agent" --robot-id 1 --resend-interval-ms 200 & a1=$!
-  "$player" --sim "$sim" --lockstep --ack-timeout-ms 500 --start-delay-ms 300 --quiet; player_rc=$?
+  "$player" --sim "$sim" --lockstep --ack-timeout-ms 500 --end-wait-ms 3000 --start-delay-ms 300 --quiet; player_rc=$?
   sleep 0.3
   kill -TERM "$a0" "$a1"
   wait "$a0"; a0_rc=$?

@@ -142,7 +142,7 @@ TEST(ServerMission, LockstepReplayThroughTheServerEqualsOffline) {
   capture_file.emplace(capture.string(), "w");
   ASSERT_TRUE(capture_file->good());
   std::int64_t captured = 0;
-  bus.subscribe(rt::Channels().local_map() + "|" + rt::Channels().sighting(),
+  bus.subscribe("(" + rt::Channels().local_map() + "|" + rt::Channels().sighting() + ")",
                 [&](const std::string& channel, const void* data, std::size_t size) {
                   if (!capture_file) return;
                   lcm::LogEvent event{};
@@ -277,6 +277,66 @@ TEST(ServerMission, LockstepReplayThroughTheServerEqualsOffline) {
     EXPECT_GT(replay.stats.unread_bytes, 0);
     replay.node.shutdown(false);
   }
+}
+
+// The server goes down (its state kept in --state) as the mission starts and
+// stays down while the player sends its sightings, for far longer than
+// --max-attempts x --ack-timeout-ms; the player keeps them until they are
+// answered, and the restarted server applies them: robot 1 joins, and every
+// local map is fused exactly once across the two lives of the server.
+TEST(ServerMission, ASightingSentWhileTheServerIsDownIsAppliedAfterItRestarts) {
+  lmf::testing::TempDir dir("lmf-server-outage");
+  const lmf::mission::MissionConfig config = lmf::testing::short_mission_config();
+  const lmf::mission::MissionInputs inputs = lmf::testing::load_short_sim_mission(dir.path() / "sim", config);
+  ASSERT_EQ(inputs.robots.size(), 2u);
+
+  rt::Bus bus("memq://");
+  rt::EventLoop loop(bus, rt::EventLoopOptions{false});
+  lmf::testing::AckCounts acks;
+  bus.subscribe_message<lmf::local_map_ack_t>(rt::Channels().local_map_ack(),
+                                              [&](const std::string&, const lmf::local_map_ack_t& a) {
+                                                ++acks[{a.robot_id, a.seq, a.status}];
+                                              });
+  lmf::server::ServerOptions server_options =
+      lmf::testing::mission_server_options(config, inputs.robots.front().robot_id, dir.path() / "server");
+  server_options.state_dir = dir.path() / "state";
+  std::optional<lmf::server::ServerNode> server(std::in_place, bus, loop, rt::Channels(), server_options);
+
+  std::vector<std::unique_ptr<lmf::robot_agent::AgentNode>> agents;
+  for (const auto& robot : inputs.robots) {
+    agents.push_back(std::make_unique<lmf::robot_agent::AgentNode>(
+        bus, loop, lmf::testing::mission_agent_options(robot.robot_id, config)));
+  }
+  lmf::log_player::PlayerOptions player_options = lmf::testing::lockstep_player_options();
+  player_options.ack_timeout = 20ms;
+  lmf::log_player::PlayerNode player(bus, loop, inputs, player_options);
+  // In this mission the sighting that joins robot 1 comes before robot 0's
+  // first local map is shipped: down at once, so that it goes out unanswered.
+  loop.run_for(50ms);
+  ASSERT_TRUE(server->shutdown(false));
+  server.reset();
+  player.start();
+  const auto waited_out = [&] {
+    const auto& c = player.counters();
+    return c.sightings_published > 0 &&
+           c.sighting_resends >= 3 * static_cast<std::int64_t>(player_options.max_attempts) * c.sightings_published;
+  };
+  ASSERT_TRUE(lmf::testing::run_until(loop, waited_out, 60s)) << player.summary();
+  EXPECT_FALSE(player.finished());
+
+  server.emplace(bus, loop, rt::Channels(), server_options);
+  EXPECT_EQ(server->recovery().from, "snapshot");
+  ASSERT_TRUE(lmf::testing::run_until(loop, [&] { return lmf::testing::mission_finished(player, agents, *server); },
+                                      90s))
+      << player.summary();
+  loop.run_for(50ms);
+
+  const auto& pc = player.counters();
+  EXPECT_EQ(pc.sightings_unanswered, 0);
+  EXPECT_EQ(pc.sightings_acked, pc.sightings_published);
+  lmf::testing::expect_each_map_fused_once(agents, acks);
+  ASSERT_TRUE(server->shutdown(false));
+  EXPECT_EQ(server->map_after_shutdown()->counts().robots_joined, 2);
 }
 
 TEST(CaptureReplay, AMissingFileOrOneThatIsNotACaptureIsAnErrorNamingIt) {
