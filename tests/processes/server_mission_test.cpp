@@ -121,6 +121,14 @@ void expect_only_resends_rejected(const lmf::server::ServerNode& node, std::int6
   EXPECT_LE(stale, extra_transmissions);
 }
 
+// Counts every local-map ack dispatched on `bus` into `acks`.
+void count_local_map_acks(rt::Bus& bus, lmf::testing::AckCounts& acks) {
+  bus.subscribe_message<lmf::local_map_ack_t>(rt::Channels().local_map_ack(),
+                                              [&acks](const std::string&, const lmf::local_map_ack_t& a) {
+                                                ++acks[{a.robot_id, a.seq, a.status}];
+                                              });
+}
+
 TEST(ServerMission, LockstepReplayThroughTheServerEqualsOffline) {
   lmf::testing::TempDir dir("lmf-server-mission");
   const lmf::mission::MissionConfig config = lmf::testing::short_mission_config();
@@ -130,10 +138,7 @@ TEST(ServerMission, LockstepReplayThroughTheServerEqualsOffline) {
   rt::Bus bus("memq://");
   rt::EventLoop loop(bus, rt::EventLoopOptions{false});
   lmf::testing::AckCounts acks;
-  bus.subscribe_message<lmf::local_map_ack_t>(rt::Channels().local_map_ack(),
-                                              [&](const std::string&, const lmf::local_map_ack_t& a) {
-                                                ++acks[{a.robot_id, a.seq, a.status}];
-                                              });
+  count_local_map_acks(bus, acks);
 
   // What lcm-logger would capture of the traffic the server consumes (LCM's
   // LogFile, the format lcm-logger writes).
@@ -293,10 +298,7 @@ TEST(ServerMission, ASightingSentWhileTheServerIsDownIsAppliedAfterItRestarts) {
   rt::Bus bus("memq://");
   rt::EventLoop loop(bus, rt::EventLoopOptions{false});
   lmf::testing::AckCounts acks;
-  bus.subscribe_message<lmf::local_map_ack_t>(rt::Channels().local_map_ack(),
-                                              [&](const std::string&, const lmf::local_map_ack_t& a) {
-                                                ++acks[{a.robot_id, a.seq, a.status}];
-                                              });
+  count_local_map_acks(bus, acks);
   lmf::server::ServerOptions server_options =
       lmf::testing::mission_server_options(config, inputs.robots.front().robot_id, dir.path() / "server");
   server_options.state_dir = dir.path() / "state";
