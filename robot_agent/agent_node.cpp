@@ -32,6 +32,7 @@ void AgentOptions::validate() const {
   if (resend_interval.count() <= 0) throw std::invalid_argument("resend interval must be > 0 ms");
   if (status_interval.count() <= 0) throw std::invalid_argument("status interval must be > 0 ms");
   if (max_seq_gap <= 0) throw std::invalid_argument("max_seq_gap must be > 0");
+  if (ack_history == 0) throw std::invalid_argument("ack_history must be > 0");
   if (test_stall_after_scan && *test_stall_after_scan < 0) throw std::invalid_argument("stall scan seq must be >= 0");
   if (!(drop_local_maps >= 0.0 && drop_local_maps < 1.0)) {
     throw std::invalid_argument("drop fraction must be in [0, 1), got " + to_string(drop_local_maps));
@@ -97,7 +98,7 @@ void AgentNode::restore(const AgentState& state) {
     last_processed_ = ProcessedScan{o.scan_seq, o.utime, o.odometry};
     next_scan_seq_ = o.scan_seq + 1;
     last_scan_utime_ = o.utime;
-    last_ack_ = o.ack;
+    acks_.push_back(o.ack);
     any_gap_once_ = true;
   }
   for (const auto& [seq, bytes] : state.unacknowledged) pending_[seq].bytes = bytes;
@@ -163,13 +164,25 @@ void AgentNode::on_scan(const std::string& channel, const void* data, std::size_
     return;
   }
   if (s.seq < next_scan_seq_) {
-    if (last_ack_ && s.seq == last_ack_->seq) {
-      ++counters_.scans_duplicate;  // a lockstep resend: our ack was lost or late
-      send_ack(*last_ack_);
+    const auto earlier = std::lower_bound(acks_.begin(), acks_.end(), s.seq,
+                                          [](const rt::ScanAck& a, std::int64_t seq) { return a.seq < seq; });
+    if (earlier != acks_.end() && earlier->seq == s.seq) {
+      if (earlier->utime == s.scan.utime) {
+        // A lockstep resend (our ack was lost or late), or a player restarted on this log.
+        ++counters_.scans_duplicate;
+        send_ack(*earlier);
+        return;
+      }
+      reject(rt::RejectReason::kStaleSequence,
+             "scan seq " + to_string(s.seq) + " at " + to_string(s.scan.utime) + " us: seq " + to_string(s.seq) +
+                 " was processed as the scan at " + to_string(earlier->utime) + " us (a player on another log?)",
+             channel);
       return;
     }
     reject(rt::RejectReason::kStaleSequence,
-           "scan seq " + to_string(s.seq) + " after " + to_string(next_scan_seq_ - 1) + " was processed", channel);
+           "scan seq " + to_string(s.seq) + " after " + to_string(next_scan_seq_ - 1) +
+               " was processed (not among the acks kept)",
+           channel);
     return;
   }
   if (!any_gap_once_ && s.seq - next_scan_seq_ > options_.max_seq_gap) {
@@ -242,7 +255,8 @@ void AgentNode::process(const rt::RobotScan& scan) {
   ack.local_map_seq = local_map_.seq();
   ack.x_LR = local_map_.x_LR();
   ack.covariance = local_map_.robot_covariance();
-  last_ack_ = ack;
+  acks_.push_back(ack);
+  if (acks_.size() > options_.ack_history) acks_.pop_front();
   if (new_origin) {
     origin_ = AgentState::Origin{scan.seq, scan.scan.utime, scan.scan.odometry, ack};
     persist();
@@ -398,8 +412,8 @@ void AgentNode::on_mission_end(const std::string& channel, const void* data, std
   // Ship the unfinished map so every scan belongs to a fused local map; the
   // next (empty) map begins at the last scan processed.
   const std::optional<std::int64_t> shipped = ship();
-  if (last_processed_ && last_ack_) {
-    origin_ = AgentState::Origin{last_processed_->seq, last_processed_->utime, last_processed_->odometry, *last_ack_};
+  if (last_processed_ && !acks_.empty()) {
+    origin_ = AgentState::Origin{last_processed_->seq, last_processed_->utime, last_processed_->odometry, acks_.back()};
   }
   persist();
   if (shipped) transmit(*shipped, pending_.at(*shipped));

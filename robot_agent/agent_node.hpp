@@ -12,9 +12,12 @@
 //   LMF_MISSION_END      in   ship the unfinished map, resend until acked
 //   LMF_AGENT_STATUS     out  every status_interval
 //
-// Scan sequence numbers: the next expected seq is processed; the last
-// processed one again is a duplicate (a lockstep resend): re-acked with the
-// same answer, not reprocessed; older ones are stale_sequence. A later seq
+// Scan sequence numbers: the next expected seq is processed; one already
+// processed again, with the same time, is a duplicate (a lockstep resend, or
+// a player restarted on the same log): re-acked with the answer it had then
+// (the last ack_history acks are kept), not reprocessed, so a restarted player
+// is led through what the agent has done and continues where it stopped.
+// Older ones with another time, or beyond the history, are stale_sequence. A later seq
 // (scans lost on the network, --rate replay) is processed and the gap counted,
 // unless it is more than max_seq_gap ahead (out_of_range: a forged or foreign
 // number). A scan older in time than the last one processed is out_of_range.
@@ -42,6 +45,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <deque>
 #include <filesystem>
 #include <map>
 #include <optional>
@@ -66,6 +70,9 @@ struct AgentOptions {
   std::chrono::milliseconds resend_interval{1000};  // > 0
   std::chrono::milliseconds status_interval{200};   // > 0
   std::int64_t max_seq_gap = 1000;  // a scan further ahead than this is refused (> 0)
+  // Acks kept to answer scans sent again (> 0; ~130 bytes each: 100000 is
+  // 2.8 h of a 10 Hz laser, 13 MB).
+  std::size_t ack_history = 100'000;
   // Simulated loss (tests): each local-map transmission, first or resend, is
   // dropped with this probability in [0, 1), from a generator seeded with drop_seed.
   double drop_local_maps = 0.0;
@@ -185,7 +192,7 @@ class AgentNode {
 
   std::int64_t next_scan_seq_ = 0;
   std::optional<std::int64_t> last_scan_utime_;
-  std::optional<runtime::ScanAck> last_ack_;  // re-sent for a duplicate scan
+  std::deque<runtime::ScanAck> acks_;  // the last ack_history acks, ascending seq: re-sent for duplicate scans
   bool map_has_scans_ = false;                // the current local map holds a scan
   std::optional<ProcessedScan> last_processed_;
   std::optional<AgentState::Origin> origin_;  // of the local map in progress

@@ -94,7 +94,7 @@ TEST(AgentNode, BadScansAreCountedAndTheAgentKeepsGoing) {
   rig.bus.publish(rig.channels.scan(0), rt::to_message(foreign));
   // Far future and old seq numbers.
   rig.send(rig.scan(1'000'000, 3));
-  rig.send(rig.scan(0, 0));
+  rig.send(rig.scan(0, 5));  // seq 0 was another scan (another log)
   // Next seq but older than the last scan.
   rig.send(rig.scan(3, 1));
   rig.drain();
@@ -117,13 +117,24 @@ TEST(AgentNode, BadScansAreCountedAndTheAgentKeepsGoing) {
   EXPECT_TRUE(lmf::is_near(rig.acks[3].x_LR, rig.acks[2].x_LR, 0.0, 0.0));
   EXPECT_EQ(rig.agent->counters().scans_duplicate, 1);
   EXPECT_EQ(rig.agent->counters().scans_processed, 3);
+  // So is an earlier one sent again (a player restarted on the same log): with
+  // the answer it had then.
+  rig.send(rig.scan(0, 0));
+  rig.drain();
+  ASSERT_EQ(rig.acks.size(), 5u);
+  EXPECT_EQ(rig.acks[4].seq, 0);
+  EXPECT_EQ(rig.acks[4].utime, rig.acks[0].utime);
+  EXPECT_TRUE(lmf::is_near(rig.acks[4].x_LR, rig.acks[0].x_LR, 0.0, 0.0));
+  EXPECT_EQ(rig.agent->counters().scans_duplicate, 2);
+  EXPECT_EQ(rig.agent->counters().scans_processed, 3);
+  EXPECT_EQ(rejects.count(RejectReason::kStaleSequence), 1);
 
   // Good scans go on; a gap (a lost scan) is processed and counted.
   rig.send(rig.scan(3, 3));
   rig.send(rig.scan(5, 5));
   rig.drain();
-  ASSERT_EQ(rig.acks.size(), 6u);
-  EXPECT_EQ(rig.acks[5].seq, 5);
+  ASSERT_EQ(rig.acks.size(), 7u);
+  EXPECT_EQ(rig.acks[6].seq, 5);
   EXPECT_EQ(rig.agent->counters().scans_processed, 5);
   EXPECT_EQ(rig.agent->counters().scans_missed, 1);
   EXPECT_EQ(rig.agent->next_scan_seq(), 6);
