@@ -5,6 +5,7 @@
 #include <iostream>
 #include <span>
 #include <sstream>
+#include <stdexcept>
 
 namespace lmf::runtime {
 
@@ -59,11 +60,36 @@ bool Bus::publish_raw(const std::string& channel, const std::vector<std::uint8_t
     signer_->sign(channel, bytes, signed_);
     message = &signed_;
   }
-  if (!good() || lcm_->publish(channel, message->data(), static_cast<unsigned int>(message->size())) != 0) {
-    ++publish_failures_;
-    return false;
+  int copies = 1;
+  if (loss_) {
+    std::uniform_real_distribution<double> uniform(0.0, 1.0);
+    if (uniform(loss_rng_) < loss_->drop) {
+      ++publishes_dropped_;
+      return true;  // lost on the way: the sender cannot tell
+    }
+    if (uniform(loss_rng_) < loss_->duplicate) {
+      ++publishes_duplicated_;
+      copies = 2;
+    }
+  }
+  for (int k = 0; k < copies; ++k) {
+    if (!good() || lcm_->publish(channel, message->data(), static_cast<unsigned int>(message->size())) != 0) {
+      ++publish_failures_;
+      return false;
+    }
   }
   return true;
+}
+
+void SimulatedLoss::validate() const {
+  if (!(drop >= 0.0 && drop < 1.0)) throw std::invalid_argument("simulated loss: drop must be in [0, 1)");
+  if (!(duplicate >= 0.0 && duplicate < 1.0)) throw std::invalid_argument("simulated loss: duplicate must be in [0, 1)");
+}
+
+void Bus::simulate_loss(const SimulatedLoss& loss) {
+  loss.validate();
+  loss_ = loss;
+  loss_rng_.seed(loss.seed);
 }
 
 int Bus::subscribe(const std::string& channel, RawHandler handler) {

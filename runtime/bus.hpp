@@ -18,6 +18,11 @@
 // message's trailer is removed unverified (a keyless listener still reads a
 // secured system).
 //
+// Simulated loss (tests, SimulatedLoss): a Bus can be made to lose or
+// duplicate what it publishes, as a lossy network would, from a seeded
+// generator (the same publishes give the same losses). The sender is not told
+// (publish still returns true), like a UDP datagram lost on the way.
+//
 // Threading: use a Bus from one thread (the event loop's). Do not subscribe or
 // unsubscribe from inside a handler.
 #pragma once
@@ -27,6 +32,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <random>
 #include <span>
 #include <string>
 #include <string_view>
@@ -39,6 +45,16 @@
 #include "runtime/rejection.hpp"
 
 namespace lmf::runtime {
+
+// A lossy, duplicating link for tests: each publish is lost with probability
+// `drop`; one that is not is sent twice with probability `duplicate`.
+struct SimulatedLoss {
+  double drop = 0.0;       // [0, 1)
+  double duplicate = 0.0;  // [0, 1)
+  std::uint64_t seed = 1;
+  // Throws std::invalid_argument for a probability outside [0, 1).
+  void validate() const;
+};
 
 class Bus {
  public:
@@ -117,6 +133,11 @@ class Bus {
   // sender's mark (auth::Verifier::refuse_through). No-op without authentication.
   void refuse_through(const auth::HighWater& high_water);
 
+  // From now on loses and duplicates what this Bus publishes (tests).
+  void simulate_loss(const SimulatedLoss& loss);
+  std::int64_t publishes_dropped() const { return publishes_dropped_; }        // by simulate_loss
+  std::int64_t publishes_duplicated() const { return publishes_duplicated_; }  // by simulate_loss
+
   // Inside a handler: the message being handled as it arrived, authentication
   // trailer included (the handler's bytes are its prefix). Empty elsewhere.
   std::span<const std::uint8_t> message_as_received() const { return as_received_; }
@@ -142,6 +163,10 @@ class Bus {
   int next_id_ = 1;
   RejectCounter rejects_;
   std::int64_t publish_failures_ = 0;
+  std::optional<SimulatedLoss> loss_;
+  std::mt19937_64 loss_rng_;
+  std::int64_t publishes_dropped_ = 0;
+  std::int64_t publishes_duplicated_ = 0;
 };
 
 }  // namespace lmf::runtime

@@ -5,10 +5,13 @@
 // fusion in arrival order), and every local map is acked FUSED exactly once.
 // The local maps and sightings of that run, captured as lcm-logger would, and
 // replayed into a fresh server (lmf-server --replay) give the same map again.
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <map>
 #include <memory>
 #include <optional>
@@ -339,6 +342,119 @@ TEST(ServerMission, ASightingSentWhileTheServerIsDownIsAppliedAfterItRestarts) {
   lmf::testing::expect_each_map_fused_once(agents, acks);
   ASSERT_TRUE(server->shutdown(false));
   EXPECT_EQ(server->map_after_shutdown()->counts().robots_joined, 2);
+}
+
+// One mission with every process on its own endpoint of one memq:// network,
+// each endpoint losing (and duplicating) what it publishes as `loss` says,
+// seeded per endpoint. Checks that every shipped local map was fused exactly
+// once (from the server's map: acks can be lost too) and keeps the map.
+struct LossyRun {
+  std::unique_ptr<lmf::fusion::GlobalMap> map;
+  std::int64_t shipped = 0;
+  std::int64_t dropped = 0;  // publishes lost, all endpoints
+  std::int64_t duplicated = 0;
+  double seconds = 0.0;
+};
+
+LossyRun run_over_lossy_links(const lmf::mission::MissionConfig& config, const lmf::mission::MissionInputs& inputs,
+                              const lmf::log_player::PlayerOptions& player_options, const rt::SimulatedLoss& loss,
+                              const std::filesystem::path& out) {
+  rt::Bus network("memq://");
+  rt::EventLoop loop(network, rt::EventLoopOptions{false});
+  std::vector<std::unique_ptr<rt::Bus>> endpoints;
+  const auto endpoint = [&]() -> rt::Bus& {
+    endpoints.push_back(std::make_unique<rt::Bus>(network, std::nullopt));
+    rt::SimulatedLoss link = loss;
+    link.seed = loss.seed + endpoints.size();
+    endpoints.back()->simulate_loss(link);
+    return *endpoints.back();
+  };
+  lmf::server::ServerNode server(endpoint(), loop, rt::Channels(),
+                                 lmf::testing::mission_server_options(config, inputs.robots.front().robot_id, out));
+  std::vector<std::unique_ptr<lmf::robot_agent::AgentNode>> agents;
+  for (const auto& robot : inputs.robots) {
+    agents.push_back(std::make_unique<lmf::robot_agent::AgentNode>(
+        endpoint(), loop, lmf::testing::mission_agent_options(robot.robot_id, config)));
+  }
+  lmf::log_player::PlayerNode player(endpoint(), loop, inputs, player_options);
+
+  LossyRun run;
+  const auto start = std::chrono::steady_clock::now();
+  player.start();
+  EXPECT_TRUE(lmf::testing::run_until(loop, [&] { return lmf::testing::mission_finished(player, agents, server); },
+                                      120s))
+      << player.summary();
+  run.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(player.counters().scans_given_up, 0);
+  EXPECT_EQ(player.counters().sightings_unanswered, 0);
+  EXPECT_TRUE(server.shutdown(false));
+  run.map = std::make_unique<lmf::fusion::GlobalMap>(*server.map_after_shutdown());
+  for (const auto& agent : agents) {
+    const auto& c = agent->counters();
+    EXPECT_EQ(c.maps_acknowledged, c.maps_shipped) << "robot " << agent->robot_id();
+    for (std::int64_t seq = 0; seq < c.maps_shipped; ++seq) {
+      EXPECT_TRUE(run.map->has_fused(agent->robot_id(), seq)) << "robot " << agent->robot_id() << " map " << seq;
+    }
+    run.shipped += c.maps_shipped;
+  }
+  EXPECT_EQ(server.view().fusion_count, run.shipped) << "each map fused once, none twice";
+  for (const auto& bus : endpoints) {
+    run.dropped += bus->publishes_dropped();
+    run.duplicated += bus->publishes_duplicated();
+  }
+  return run;
+}
+
+// 20 % of every datagram lost and 5 % duplicated, on every link (scans, their
+// acks, local maps, their acks, sightings, their answers, corrected frames,
+// the mission end): in lockstep every local map is still fused exactly once
+// and every robot joins. Known gap: the map is not always the lossless run's
+// (0.1 mm or 1.6 cm apart in two runs of this test), because a lost local map
+// or sighting can reach the FIFO server after inputs that followed it; nor does
+// the replay keep within 3x the lossless time (5.5x and 6.3x measured: the
+// fixed 200 ms resend waits of local maps and sightings). Both are printed, not
+// asserted; the cure would be a lockstep player that waits for each shipped
+// map's and sighting's answer.
+TEST(ServerMission, LockstepUnderTwentyPercentLossOnEveryLinkFusesEveryMapOnce) {
+  lmf::testing::TempDir dir("lmf-server-lossy");
+  const lmf::mission::MissionConfig config = lmf::testing::short_mission_config();
+  const lmf::mission::MissionInputs inputs = lmf::testing::load_short_sim_mission(dir.path() / "sim", config);
+  lmf::log_player::PlayerOptions options = lmf::testing::lockstep_player_options();
+  options.ack_timeout = 200ms;  // the sightings' fixed resend wait; scans learn theirs
+  const LossyRun lossless = run_over_lossy_links(config, inputs, options, rt::SimulatedLoss{}, dir.path() / "a");
+  const LossyRun lossy =
+      run_over_lossy_links(config, inputs, options, rt::SimulatedLoss{0.2, 0.05, 7}, dir.path() / "b");
+  double largest_m = 0.0;
+  for (const auto& frame : lossless.map->corrected_frames()) {
+    const auto ours = lossy.map->corrected_frame(frame.robot_id);
+    ASSERT_TRUE(ours.has_value()) << "robot " << frame.robot_id;
+    largest_m = std::max(largest_m, std::hypot(ours->x_WL.x - frame.x_WL.x, ours->x_WL.y - frame.x_WL.y));
+  }
+  std::cout << "lockstep: lossless " << lossless.seconds << " s, 20 % loss + 5 % duplicates on every link "
+            << lossy.seconds << " s (" << lossy.dropped << " publishes lost, " << lossy.duplicated
+            << " duplicated); frames up to " << largest_m << " m from the lossless run's\n";
+  EXPECT_GT(lossy.dropped, 100);
+  EXPECT_GT(lossy.duplicated, 10);
+  EXPECT_EQ(lossy.shipped, lossless.shipped) << "lockstep: every scan processed, the same local maps";
+  EXPECT_EQ(lossy.map->counts().robots_joined, lossless.map->counts().robots_joined);
+}
+
+// The same loss with the player at a replay rate: scans lost stay lost (the
+// agents count the gaps), so the map is not the lossless one, but every local
+// map shipped is fused exactly once and robot 1 still joins.
+TEST(ServerMission, RateReplayUnderTwentyPercentLossOnEveryLinkFusesEveryMapOnce) {
+  lmf::testing::TempDir dir("lmf-server-lossy-rate");
+  const lmf::mission::MissionConfig config = lmf::testing::short_mission_config();
+  const lmf::mission::MissionInputs inputs = lmf::testing::load_short_sim_mission(dir.path() / "sim", config);
+  lmf::log_player::PlayerOptions options = lmf::testing::lockstep_player_options();
+  options.lockstep = false;
+  options.rate = 20.0;
+  options.ack_timeout = 200ms;
+  const LossyRun lossy =
+      run_over_lossy_links(config, inputs, options, rt::SimulatedLoss{0.2, 0.05, 3}, dir.path() / "rate");
+  EXPECT_GT(lossy.dropped, 100);
+  EXPECT_GT(lossy.shipped, 2);
+  EXPECT_EQ(lossy.map->counts().robots_joined, static_cast<int>(inputs.robots.size()));
 }
 
 TEST(CaptureReplay, AMissingFileOrOneThatIsNotACaptureIsAnErrorNamingIt) {

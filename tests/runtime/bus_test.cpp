@@ -158,6 +158,37 @@ TEST(Bus, UnsubscribeStopsDelivery) {
   EXPECT_EQ(n, 1);
 }
 
+TEST(Bus, SimulatedLossDropsAndDuplicatesDeterministically) {
+  // What a listener receives of 2000 publishes through a lossy endpoint.
+  const auto heard = [](const rt::SimulatedLoss& loss, std::int64_t* dropped, std::int64_t* duplicated) {
+    rt::Bus network("memq://");
+    rt::Bus sender(network, std::nullopt);
+    sender.simulate_loss(loss);
+    std::vector<std::uint8_t> received;
+    network.subscribe("X", [&](const std::string&, const void* data, std::size_t) {
+      received.push_back(*static_cast<const std::uint8_t*>(data));
+    });
+    for (int k = 0; k < 2000; ++k) {
+      EXPECT_TRUE(sender.publish_raw("X", {static_cast<std::uint8_t>(k % 251)}));  // the sender cannot tell
+      network.handle_pending();
+    }
+    *dropped = sender.publishes_dropped();
+    *duplicated = sender.publishes_duplicated();
+    return received;
+  };
+  std::int64_t dropped = 0, duplicated = 0, dropped_again = 0, duplicated_again = 0;
+  const auto first = heard({0.2, 0.1, 42}, &dropped, &duplicated);
+  EXPECT_EQ(heard({0.2, 0.1, 42}, &dropped_again, &duplicated_again), first) << "the same seed, the same losses";
+  EXPECT_EQ(static_cast<std::int64_t>(first.size()), 2000 - dropped + duplicated);
+  EXPECT_NEAR(static_cast<double>(dropped) / 2000.0, 0.2, 0.04);
+  EXPECT_NEAR(static_cast<double>(duplicated) / static_cast<double>(2000 - dropped), 0.1, 0.03);
+  EXPECT_NE(heard({0.2, 0.1, 43}, &dropped_again, &duplicated_again), first);
+
+  rt::Bus bus("memq://");
+  EXPECT_THROW(bus.simulate_loss({1.0, 0.0, 1}), std::invalid_argument);
+  EXPECT_THROW(bus.simulate_loss({0.0, -0.1, 1}), std::invalid_argument);
+}
+
 TEST(Bus, BadUrlIsNotGood) {
   rt::Bus bus("nosuchprovider://");
   EXPECT_FALSE(bus.good());
