@@ -147,6 +147,7 @@ int main(int argc, char** argv) {
   if (!replay.empty()) return replay_capture_and_exit(kProgram, replay, common, options);
 
   lmf::runtime::Bus bus(common.lcm_url, lmf::runtime::auth_config_or_exit(common, "server", kProgram));
+  lmf::runtime::simulate_loss_or_exit(bus, common, kProgram);
   if (!bus.good()) lmf::runtime::exit_with_error(kProgram, "cannot open LCM at '" + bus.url() + "'");
   lmf::runtime::EventLoop loop(bus);
   std::optional<lmf::server::ServerNode> node;

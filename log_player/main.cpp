@@ -105,6 +105,7 @@ int main(int argc, char** argv) {
   }
 
   rt::Bus bus(common.lcm_url, rt::auth_config_or_exit(common, "player", kProgram));
+  rt::simulate_loss_or_exit(bus, common, kProgram);
   if (!bus.good()) rt::exit_with_error(kProgram, "cannot open LCM at '" + bus.url() + "'");
   rt::EventLoop loop(bus);
   options.on_finished = [&loop] { loop.stop(); };

@@ -69,6 +69,7 @@ int main(int argc, char** argv) {
   }
 
   rt::Bus bus(common.lcm_url, rt::auth_config_or_exit(common, rt::auth::robot_principal(robot_id), kProgram));
+  rt::simulate_loss_or_exit(bus, common, kProgram);
   if (!bus.good()) rt::exit_with_error(kProgram, "cannot open LCM at '" + bus.url() + "'");
   rt::EventLoop loop(bus);
   std::unique_ptr<lmf::robot_agent::AgentNode> node;

@@ -26,7 +26,24 @@ void add_common_options(po::options_description& description, CommonOptions& opt
        "keys file (lines 'principal hex-key', mode 600): sign every message published and accept only messages "
        "signed by its principals, fresh and allowed for the sender; without it nothing is signed or checked")
       ("identity", po::value<std::string>(&options.identity),
-       "principal to sign as with --keys (default: server, player, monitor or robot<id>, by process)");
+       "principal to sign as with --keys (default: server, player, monitor or robot<id>, by process)")
+      ("simulate-loss", po::value(&options.loss.drop)->default_value(options.loss.drop),
+       "testing: lose this fraction [0, 1) of the messages this process publishes, as a lossy network would")
+      ("simulate-duplicates", po::value(&options.loss.duplicate)->default_value(options.loss.duplicate),
+       "testing: send this fraction [0, 1) of the messages not lost twice")
+      ("simulate-seed", po::value(&options.loss.seed)->default_value(options.loss.seed),
+       "testing: seed of --simulate-loss and --simulate-duplicates");
+}
+
+void simulate_loss_or_exit(Bus& bus, const CommonOptions& options, std::string_view program) {
+  if (options.loss.drop == 0.0 && options.loss.duplicate == 0.0) return;
+  try {
+    bus.simulate_loss(options.loss);
+  } catch (const std::exception& e) {
+    exit_with_error(program, e.what(), 2);
+  }
+  std::cerr << program << ": simulating a lossy network: " << options.loss.drop * 100.0 << " % of what it publishes lost, "
+            << options.loss.duplicate * 100.0 << " % duplicated (seed " << options.loss.seed << ")\n";
 }
 
 std::optional<auth::Config> auth_config(const CommonOptions& options, std::string_view default_identity) {

@@ -19,6 +19,7 @@
 #include <boost/program_options/variables_map.hpp>
 
 #include "runtime/auth.hpp"
+#include "runtime/bus.hpp"
 #include "runtime/channels.hpp"
 
 namespace lmf::runtime {
@@ -28,9 +29,11 @@ struct CommonOptions {
   std::string channel_prefix = std::string(kDefaultChannelPrefix);
   std::string keys_file;  // empty: no authentication
   std::string identity;   // empty: the process's default principal
+  SimulatedLoss loss;     // testing: --simulate-loss, --simulate-duplicates, --simulate-seed
 };
 
-// Adds --lcm-url, --channel-prefix, --keys, --identity and --help, writing into `options`.
+// Adds --lcm-url, --channel-prefix, --keys, --identity, the --simulate-* test
+// flags and --help, writing into `options`.
 void add_common_options(boost::program_options::options_description& description, CommonOptions& options);
 
 struct ParseResult {
@@ -59,6 +62,10 @@ std::optional<auth::Config> auth_config(const CommonOptions& options, std::strin
 // auth_config() for main(): prints "<program>: error: ..." and exits 2 on an error.
 std::optional<auth::Config> auth_config_or_exit(const CommonOptions& options, std::string_view default_identity,
                                                 std::string_view program);
+
+// Applies the --simulate-* flags to the process's bus (a no-op without them);
+// prints "<program>: error: ..." and exits 2 for a bad probability.
+void simulate_loss_or_exit(Bus& bus, const CommonOptions& options, std::string_view program);
 
 // Prints "<program>: error: <message>" to stderr and exits with `exit_code`
 // (e.g. after a config file or the bus fails to load).
