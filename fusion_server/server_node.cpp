@@ -269,8 +269,10 @@ void ServerNode::on_sighting(const void* data, std::size_t size) {
 
 std::pair<std::span<const std::uint8_t>, std::optional<runtime::auth::SignedBy>> ServerNode::as_journaled(
     const void* data, std::size_t size) const {
-  if (!store_ || !bus_.authenticated()) return {{static_cast<const std::uint8_t*>(data), size}, std::nullopt};
+  const std::span<const std::uint8_t> payload(static_cast<const std::uint8_t*>(data), size);
+  if (!store_ || !bus_.authenticated()) return {payload, std::nullopt};
   const std::span<const std::uint8_t> received = bus_.message_as_received();
+  if (received.size() < size) return {payload, std::nullopt};  // not inside a Bus handler
   return {received, runtime::auth::signed_by(received)};
 }
 
