@@ -177,7 +177,8 @@ void ServerNode::on_local_map(const void* data, std::size_t size) {
     return;
   }
   if (seqs.waiting.count(seq) != 0) {
-    ++stats_.resends_while_waiting;  // its ack follows when the worker applied it
+    ++stats_.resends_while_waiting;  // its RECEIVED was lost or is late: again; FUSED or QUEUED follows
+    publish_ack(robot_id, seq, runtime::LocalMapAck::Status::kReceived);
     return;
   }
   const auto arrived = Clock::now();
@@ -208,6 +209,9 @@ void ServerNode::on_local_map(const void* data, std::size_t size) {
     return;
   }
   seqs.waiting.insert(seq);
+  // Taken (on disk with --state): the agent stops resending at its learned
+  // pace, and a lockstep agent releases the scan ack it held for this map.
+  publish_ack(robot_id, seq, runtime::LocalMapAck::Status::kReceived);
 }
 
 void ServerNode::on_sighting(const void* data, std::size_t size) {
@@ -242,7 +246,8 @@ void ServerNode::on_sighting(const void* data, std::size_t size) {
     return;
   }
   if (sightings_waiting_.count(key) != 0) {
-    ++stats_.resends_while_waiting;  // its ack follows when the worker applied it
+    ++stats_.resends_while_waiting;  // its RECEIVED was lost or is late: again; APPLIED or REJECTED follows
+    publish_sighting_ack(s, runtime::SightingAck::Status::kReceived);
     return;
   }
   const auto arrived = Clock::now();
@@ -265,6 +270,7 @@ void ServerNode::on_sighting(const void* data, std::size_t size) {
         after_task(lsn, signer);
       },
       FusionWorker::Bound::kUnbounded);
+  publish_sighting_ack(s, runtime::SightingAck::Status::kReceived);
 }
 
 std::pair<std::span<const std::uint8_t>, std::optional<runtime::auth::SignedBy>> ServerNode::as_journaled(
@@ -621,9 +627,11 @@ bool ServerNode::write_outputs(const LoopSnapshot& loop_side) const {
                           {"acks_fused", s.acks_fused},
                           {"acks_duplicate", s.acks_duplicate},
                           {"acks_queued", s.acks_queued},
+                          {"acks_received", s.acks_received},
                           {"sighting_acks_applied", s.sighting_acks_applied},
                           {"sighting_acks_duplicate", s.sighting_acks_duplicate},
                           {"sighting_acks_rejected", s.sighting_acks_rejected},
+                          {"sighting_acks_received", s.sighting_acks_received},
                           {"resends_while_waiting", s.resends_while_waiting},
                           {"deferred_queue_full", s.deferred_queue_full},
                           {"discarded_at_stop", s.discarded_at_stop}};
@@ -722,6 +730,7 @@ void ServerNode::publish_ack(int robot_id, std::int64_t seq, runtime::LocalMapAc
     case runtime::LocalMapAck::Status::kFused: ++stats_.acks_fused; break;
     case runtime::LocalMapAck::Status::kDuplicate: ++stats_.acks_duplicate; break;
     case runtime::LocalMapAck::Status::kQueued: ++stats_.acks_queued; break;
+    case runtime::LocalMapAck::Status::kReceived: ++stats_.acks_received; break;
   }
   bus_.publish(channels_.local_map_ack(), runtime::to_message(ack));
 }
@@ -736,6 +745,7 @@ void ServerNode::publish_sighting_ack(const runtime::Sighting& s, runtime::Sight
     case runtime::SightingAck::Status::kApplied: ++stats_.sighting_acks_applied; break;
     case runtime::SightingAck::Status::kDuplicate: ++stats_.sighting_acks_duplicate; break;
     case runtime::SightingAck::Status::kRejected: ++stats_.sighting_acks_rejected; break;
+    case runtime::SightingAck::Status::kReceived: ++stats_.sighting_acks_received; break;
   }
   bus_.publish(channels_.sighting_ack(), runtime::to_message(ack));
 }

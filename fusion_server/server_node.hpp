@@ -6,21 +6,23 @@
 //   decode + validate (runtime/convert) -> reject by reason;
 //   robot id >= max_robots               -> reject unknown_robot;
 //   (robot, seq) already applied         -> ack DUPLICATE, count stale_sequence, never re-applied;
-//   (robot, seq) waiting in the worker   -> nothing (its ack follows when it is applied);
+//   (robot, seq) waiting in the worker   -> ack RECEIVED again (the final ack follows);
 //   worker queue full                    -> nothing: no ack, so the agent resends later;
-//   else queued to the worker, which calls GlobalMap::fuse; an invalid_argument
-//   from it is a counted reject (the map is unchanged). The ack (FUSED, or
-//   QUEUED when the GlobalMap holds it for a robot that has not joined) is sent
-//   on the loop thread once the GlobalMap accepted it. Local maps fused later
-//   (when their robot joins) get a FUSED ack then too.
+//   else journaled, queued to the worker and acked RECEIVED at once (so the
+//   agent's resend wait can follow the round trip, not the fusion time). The
+//   worker calls GlobalMap::fuse; an invalid_argument from it is a counted
+//   reject (the map is unchanged). The final ack (FUSED, or QUEUED when the
+//   GlobalMap holds it for a robot that has not joined) is sent on the loop
+//   thread once the GlobalMap accepted it. Local maps fused later (when their
+//   robot joins) get a FUSED ack then too.
 // Sightings (LMF_SIGHTING), named by (utime, observer, observed), are validated
 // the same way and go through the SAME worker FIFO, so a lockstep replay fuses
 // in lmf-offline's order. Each is answered on LMF_SIGHTING_ACK (the player
-// resends it until then): APPLIED once the worker gave it to the GlobalMap,
-// REJECTED when the GlobalMap or the checks here refused it (robot id >=
-// max_robots, a robot sighting itself), DUPLICATE for a repeat of one already
-// answered (also counted stale_sequence); a repeat still waiting in the worker
-// gets nothing (its ack follows).
+// resends it until then): RECEIVED once taken, APPLIED once the worker gave it
+// to the GlobalMap, REJECTED when the GlobalMap or the checks here refused it
+// (robot id >= max_robots, a robot sighting itself), DUPLICATE for a repeat of
+// one already answered (also counted stale_sequence); a repeat still waiting
+// in the worker gets RECEIVED again.
 //
 // Ownership across threads: the GlobalMap, the TrajectoryBook and the fusion
 // records belong to the worker thread (and to the caller of shutdown() once the
@@ -114,13 +116,15 @@ struct ServerStats {
   std::int64_t acks_fused = 0;
   std::int64_t acks_duplicate = 0;
   std::int64_t acks_queued = 0;
+  std::int64_t acks_received = 0;           // RECEIVED: taken, the final answer follows
   std::int64_t sighting_acks_applied = 0;
   std::int64_t sighting_acks_duplicate = 0;
   std::int64_t sighting_acks_rejected = 0;
+  std::int64_t sighting_acks_received = 0;
   std::int64_t local_maps_received = 0;  // every LMF_LOCAL_MAP message, good or bad
   std::int64_t sightings_received = 0;
   std::int64_t sightings_applied = 0;    // handed to the GlobalMap without error
-  std::int64_t resends_while_waiting = 0;  // local maps and sightings repeated before their ack
+  std::int64_t resends_while_waiting = 0;  // local maps and sightings repeated while in the worker (answered RECEIVED)
   std::int64_t deferred_queue_full = 0;  // not acked because the worker queue was full
   std::int64_t discarded_at_stop = 0;    // waiting tasks never started (never acked)
   std::int64_t worker_errors = 0;

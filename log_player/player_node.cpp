@@ -42,7 +42,9 @@ PlayerNode::PlayerNode(rt::Bus& bus, rt::EventLoop& loop, mission::MissionInputs
       options_((options.validate(), std::move(options))),
       scan_resend_(rt::RetransmissionConfig{std::min(options_.min_ack_timeout, options_.ack_timeout),
                                             options_.ack_timeout}),
-      drop_random_(options_.drop_seed) {
+      drop_random_(options_.drop_seed),
+      sighting_resend_(rt::RetransmissionConfig{std::min(options_.min_ack_timeout, options_.ack_timeout),
+                                                options_.ack_timeout}) {
   if (inputs_.robots.empty()) throw std::invalid_argument("PlayerNode: no robots to replay");
   for (std::size_t i = 0; i < inputs_.robots.size(); ++i) {
     const mission::RobotLog& log = inputs_.robots[i];
@@ -70,6 +72,13 @@ PlayerNode::PlayerNode(rt::Bus& bus, rt::EventLoop& loop, mission::MissionInputs
   counters_.sightings_total = static_cast<std::int64_t>(inputs_.sightings.size());
   subscriptions_.push_back(bus_.subscribe(
       options_.channels.scan_ack(), [this](const std::string& c, const void* d, std::size_t n) { on_ack(c, d, n); }));
+  robot_done_.assign(inputs_.robots.size(), false);
+  if (options_.lockstep) {
+    subscriptions_.push_back(bus_.subscribe(options_.channels.agent_status(),
+                                            [this](const std::string& c, const void* d, std::size_t n) {
+                                              on_agent_status(c, d, n);
+                                            }));
+  }
   subscriptions_.push_back(bus_.subscribe(options_.channels.sighting_ack(),
                                           [this](const std::string& c, const void* d, std::size_t n) {
                                             on_sighting_ack(c, d, n);
@@ -80,6 +89,7 @@ PlayerNode::~PlayerNode() {
   if (ack_timer_) loop_.cancel(*ack_timer_);
   if (step_timer_) loop_.cancel(*step_timer_);
   if (sighting_timer_) loop_.cancel(*sighting_timer_);
+  if (receipt_timer_) loop_.cancel(*receipt_timer_);
   if (end_wait_timer_) loop_.cancel(*end_wait_timer_);
   for (const int id : timers_) loop_.cancel(id);
   for (const int id : subscriptions_) bus_.unsubscribe(id);
@@ -184,9 +194,20 @@ void PlayerNode::lockstep_step() {
     return;
   }
   const ScanEvent& event = events_[next_event_];
+  if (receipt_timer_) return;  // waiting for the server's answer to the sightings before it
   // Sightings strictly before the next scan (scans first at equal times): every
-  // scan at or before them has been acked (or given up).
+  // scan at or before them has been acked (or given up). The scan waits for the
+  // server's first answer to them, so nothing overtakes them.
   publish_sightings(event.utime, true);
+  if (!awaiting_receipt_.empty()) {
+    receipt_timer_ = loop_.after(options_.ack_timeout, [this] {
+      receipt_timer_.reset();
+      ++counters_.sighting_receipt_waits_expired;
+      awaiting_receipt_.clear();
+      lockstep_step();
+    });
+    return;
+  }
   attempts_ = 1;
   ++counters_.scans_sent;
   send_scan(event);
@@ -331,9 +352,9 @@ PlayerNode::SightingOutcome PlayerNode::try_sighting(const mission::SightingInpu
   if (pending_sightings_.size() >= options_.max_pending_sightings) give_up_oldest_sighting();
   PendingSighting& pending = pending_sightings_[key];
   pending.message = std::move(msg.value());
-  pending.attempts = 1;
-  bus_.publish(options_.channels.sighting(), pending.message);
-  if (!sighting_timer_) sighting_timer_ = loop_.after(options_.ack_timeout, [this] { resend_sightings(); });
+  send_sighting(pending);
+  schedule_sighting_resend();
+  if (options_.lockstep && !replay_done_) awaiting_receipt_.insert(key);
   ++counters_.sightings_published;
   if (approximate) ++counters_.sightings_approximate;
   return SightingOutcome::kPublished;
@@ -351,26 +372,60 @@ void PlayerNode::give_up_oldest_sighting() {
   pending_sightings_.erase(oldest);
 }
 
+void PlayerNode::send_sighting(PendingSighting& sighting) {
+  ++sighting.attempts;
+  sighting.last_sent = std::chrono::steady_clock::now();
+  bus_.publish(options_.channels.sighting(), sighting.message);
+}
+
+std::chrono::steady_clock::duration PlayerNode::resend_wait(const PendingSighting& sighting) const {
+  if (sighting.received) return options_.ack_timeout;
+  return sighting_resend_.timeout(std::max(1, sighting.attempts));
+}
+
+void PlayerNode::schedule_sighting_resend() {
+  if (sighting_timer_) loop_.cancel(*sighting_timer_);
+  sighting_timer_.reset();
+  if (pending_sightings_.empty()) return;
+  auto due = std::chrono::steady_clock::time_point::max();
+  for (const auto& entry : pending_sightings_) due = std::min(due, entry.second.last_sent + resend_wait(entry.second));
+  const auto delay = std::max(due - std::chrono::steady_clock::now(), std::chrono::steady_clock::duration::zero());
+  sighting_timer_ = loop_.after(std::chrono::ceil<std::chrono::milliseconds>(delay), [this] { resend_sightings(); });
+}
+
 void PlayerNode::resend_sightings() {
   sighting_timer_.reset();
+  const auto now = std::chrono::steady_clock::now();
+  // When one the server has not received is due, all of those go again, in
+  // time order: a server that was down gets them in lmf-offline's order.
+  bool unreceived_due = false;
+  for (const auto& [key, p] : pending_sightings_) {
+    if (!p.received && now - p.last_sent >= resend_wait(p)) unreceived_due = true;
+  }
   int oldest = 0;
+  bool oldest_unreceived = false;
   for (auto& [key, p] : pending_sightings_) {
-    ++p.attempts;
-    ++counters_.sighting_resends;
-    bus_.publish(options_.channels.sighting(), p.message);
-    oldest = std::max(oldest, p.attempts);
-  }
-  if (!pending_sightings_.empty()) {
-    // Nothing is given up for want of an answer: say so now and then, so a
-    // player waiting for a server that is not there does not wait silently.
-    if (oldest % 10 == 0) {
-      std::cerr << "lmf-player: " << pending_sightings_.size() << " sighting(s) unanswered, the oldest after " << oldest
-                << " sends; resending every " << options_.ack_timeout.count() << " ms (is lmf-server running?)\n";
+    if (p.received ? now - p.last_sent >= resend_wait(p) : unreceived_due) {
+      ++counters_.sighting_resends;
+      send_sighting(p);
+      if (p.attempts > oldest) {
+        oldest = p.attempts;
+        oldest_unreceived = !p.received;
+      }
     }
-    sighting_timer_ = loop_.after(options_.ack_timeout, [this] { resend_sightings(); });
-  } else {
-    on_sightings_answered();
   }
+  if (pending_sightings_.empty()) {
+    on_sightings_answered();
+    return;
+  }
+  // Nothing is given up for want of an answer: say so now and then, so a
+  // player waiting for a server that is not there does not wait silently.
+  if (oldest_unreceived && oldest % 10 == 0) {
+    std::cerr << "lmf-player: " << pending_sightings_.size() << " sighting(s) unanswered, the oldest after " << oldest
+              << " sends; resending at most every " << options_.ack_timeout.count()
+              << " ms (is lmf-server running?)\n";
+  }
+  schedule_sighting_resend();
 }
 
 void PlayerNode::give_up_pending_sightings() {
@@ -388,7 +443,7 @@ void PlayerNode::on_sightings_answered() {
   if (!ending_) return;
   if (end_wait_timer_) loop_.cancel(*end_wait_timer_);
   end_wait_timer_.reset();
-  send_mission_end();
+  end_next_robot();
 }
 
 void PlayerNode::on_sighting_ack(const std::string& channel, const void* data, std::size_t size) {
@@ -411,6 +466,17 @@ void PlayerNode::on_sighting_ack(const std::string& channel, const void* data, s
     }
     return;
   }
+  PendingSighting& pending = it->second;
+  // Karn's rule: only the first answer to a sighting sent once times the round trip.
+  if (pending.attempts == 1 && !pending.received) {
+    sighting_resend_.on_round_trip(std::chrono::steady_clock::now() - pending.last_sent);
+  }
+  on_sighting_received(key);
+  if (a.status == rt::SightingAck::Status::kReceived) {
+    pending.received = true;
+    schedule_sighting_resend();
+    return;
+  }
   if (a.status == rt::SightingAck::Status::kRejected) {
     ++counters_.sightings_rejected;
     std::cerr << "lmf-player: the server rejected the sighting of robot " << a.observed_id << " by robot "
@@ -419,7 +485,22 @@ void PlayerNode::on_sighting_ack(const std::string& channel, const void* data, s
     ++counters_.sightings_acked;
   }
   pending_sightings_.erase(it);
-  if (pending_sightings_.empty()) on_sightings_answered();
+  if (pending_sightings_.empty()) {
+    on_sightings_answered();
+  } else {
+    schedule_sighting_resend();
+  }
+}
+
+void PlayerNode::on_sighting_received(const SightingKey& key) {
+  if (awaiting_receipt_.erase(key) == 0 || !awaiting_receipt_.empty() || !receipt_timer_) return;
+  loop_.cancel(*receipt_timer_);
+  receipt_timer_.reset();
+  // Not from inside the bus handler: the next scan goes out from a fresh loop turn.
+  step_timer_ = loop_.after(0ms, [this] {
+    step_timer_.reset();
+    lockstep_step();
+  });
 }
 
 // ---- the end ----------------------------------------------------------------------------------------
@@ -430,10 +511,63 @@ void PlayerNode::finish() {
   report_progress(true);
   ending_ = true;
   if (pending_sightings_.empty()) {
-    send_mission_end();
+    end_next_robot();
   } else if (options_.end_wait.count() > 0) {  // else once the last one is answered or given up
     end_wait_timer_ = loop_.after(options_.end_wait, [this] { give_up_pending_sightings(); });
   }
+}
+
+void PlayerNode::end_next_robot() {
+  if (step_timer_) loop_.cancel(*step_timer_);
+  step_timer_.reset();
+  if (!options_.lockstep) {
+    send_mission_end();
+    return;
+  }
+  const auto now = std::chrono::steady_clock::now();
+  while (ending_robot_ < robot_done_.size() && robot_done_[ending_robot_]) {
+    ++ending_robot_;
+    ending_robot_since_ = now;
+  }
+  if (ending_robot_ >= robot_done_.size()) {
+    send_mission_end();
+    return;
+  }
+  if (ending_robot_since_ == std::chrono::steady_clock::time_point{}) ending_robot_since_ = now;
+  if (now - ending_robot_since_ >= options_.ack_timeout) {
+    ++counters_.mission_end_waits_expired;
+    std::cerr << "lmf-player: no mission_done from robot " << inputs_.robots[ending_robot_].robot_id << " within "
+              << options_.ack_timeout.count() << " ms of its mission end; going on\n";
+    robot_done_[ending_robot_] = true;
+    end_next_robot();
+    return;
+  }
+  rt::MissionEnd end;
+  end.utime = events_.empty() ? 0 : std::max<std::int64_t>(0, events_.back().utime);
+  end.robot_ids = {inputs_.robots[ending_robot_].robot_id};
+  if (auto msg = rt::to_message(end)) bus_.publish(options_.channels.mission_end(), msg.value());
+  step_timer_ = loop_.after(options_.mission_end_interval, [this] {
+    step_timer_.reset();
+    end_next_robot();
+  });
+}
+
+void PlayerNode::on_agent_status(const std::string& channel, const void* data, std::size_t size) {
+  auto status = rt::decode_message<lmf::agent_status_t>(data, size);
+  if (!status) {
+    rejects_.record(status.rejection(), channel);
+    return;
+  }
+  const auto it = robot_index_.find(status.value().robot_id);
+  if (it == robot_index_.end() || !status.value().mission_done || robot_done_[it->second]) return;
+  robot_done_[it->second] = true;
+  if (!ending_ || finished_ || it->second != ending_robot_ || counters_.mission_end_sent > 0) return;
+  // Not from inside the bus handler.
+  if (step_timer_) loop_.cancel(*step_timer_);
+  step_timer_ = loop_.after(0ms, [this] {
+    step_timer_.reset();
+    end_next_robot();
+  });
 }
 
 void PlayerNode::send_mission_end() {

@@ -6,31 +6,43 @@
 //   LMF_SIGHTING    out  robot B seen by robot A, with each robot's local map
 //                        seq, x_L? and covariance taken from the ack of its last
 //                        scan at or before the sighting's time; resent until
-//                        the server answers, however long it is down: every
-//                        ack_timeout, all unanswered ones in time order (a
-//                        server started late or restarted gets them in the
+//                        the server answers, however long it is down: when one
+//                        not received is due, all not received in time order
+//                        (a server started late or restarted gets them in the
 //                        order lmf-offline applies them). Bounded by a queue,
 //                        not by a send count: once max_pending_sightings wait,
 //                        publishing another gives up the oldest
-//   LMF_SIGHTING_ACK in  the server's answer to a sighting: stop resending
-//   LMF_MISSION_END out  at the end, repeated mission_end_repeats times
+//   LMF_SIGHTING_ACK in  the server's answer to a sighting: RECEIVED (taken:
+//                        resend only every ack_timeout), else stop resending
+//   LMF_MISSION_END out  at the end, repeated mission_end_repeats times (lockstep:
+//                        first robot by robot, below)
+//   LMF_AGENT_STATUS in  lockstep: an agent's mission_done ends its wait
 //
 // Two pacings:
 //  * lockstep: one scan at a time in global time order (ties: lower robot id),
 //    the next only after the agent acked it (resent after the learned resend
-//    wait, given up after max_attempts sends, never with 0); sightings strictly before the next scan's time
-//    are published first. Each local map is then published before the scans
-//    and sightings that follow it, so a FIFO server fuses exactly as lmf-offline.
+//    wait, given up after max_attempts sends, never with 0); sightings strictly
+//    before the next scan's time are published first, and the scan waits for
+//    the server's first answer to them (at most ack_timeout). An agent acks a
+//    scan that shipped a local map once the server answered that map
+//    (robot_agent/agent_node.hpp), so each local map and sighting reaches the
+//    server before the scans and sightings that follow it, lost datagrams
+//    included, and a FIFO server fuses exactly as lmf-offline.
 //  * rate R: each scan at (its time - first scan time) / R after the start,
 //    without waiting; a sighting once its time has come and both robots acked
 //    their last scan at or before it (after ack_timeout more, the latest ack
 //    before it stands in).
-// The lockstep resend wait (runtime/retransmission_timeout.hpp) is learned
-// from the scans' ack round trips, between min_ack_timeout and ack_timeout,
-// doubled per further send; before the first ack, ack_timeout. Sightings keep
-// the fixed ack_timeout: their answers wait behind fusions in the server's
-// queue, a mission has few of them to learn from, and a resend that crosses
-// its answer is counted stale_sequence by the server.
+// Resend waits (runtime/retransmission_timeout.hpp) are learned from round
+// trips, between min_ack_timeout and ack_timeout, doubled per further send;
+// before the first answer, ack_timeout: for lockstep scans from the scans'
+// acks, for sightings from the server's RECEIVED (sent on receipt, before the
+// worker applies it). A sighting received waits for its final answer, resent
+// every ack_timeout.
+// The end in lockstep: each agent ships its unfinished map on the mission end,
+// so, for those maps too to reach the server in one order, the mission end
+// goes to one robot at a time in id order, each once the previous agent's
+// status said mission_done (every map it shipped answered), waiting at most
+// ack_timeout per robot; then to all, as in rate mode.
 // A sighting whose robot has not scanned yet (no local frame to relate) is
 // skipped, as lmf-offline does. The mission end goes out once every published
 // sighting was answered or given up (a server that was down when a sighting
@@ -105,12 +117,14 @@ struct PlayerCounters {
   std::int64_t sightings_published = 0;
   std::int64_t sightings_approximate = 0;  // published with an earlier ack standing in
   std::int64_t sightings_skipped = 0;      // a robot had not scanned yet (or unknown / bad values)
-  std::int64_t sighting_resends = 0;       // sends after an ack_timeout without answer
+  std::int64_t sighting_resends = 0;       // sends after a resend wait without answer
+  std::int64_t sighting_receipt_waits_expired = 0;  // lockstep: the next scan went out without their answer
   std::int64_t sightings_acked = 0;        // answered APPLIED or DUPLICATE
   std::int64_t sightings_rejected = 0;     // answered REJECTED (the server refused it)
   std::int64_t sightings_unanswered = 0;   // given up unanswered: the queue was full, or end_wait passed
   std::int64_t sighting_acks_duplicate = 0;  // answers to a sighting already answered
   std::int64_t mission_end_sent = 0;
+  std::int64_t mission_end_waits_expired = 0;  // lockstep: a robot's mission_done not seen within ack_timeout
 };
 
 class PlayerNode {
@@ -161,9 +175,12 @@ class PlayerNode {
   void give_up_oldest_sighting();  // the queue of pending sightings is full
   void give_up_pending_sightings();  // end_wait passed after the replay
   void on_sightings_answered();  // none pending any more
+  void on_sighting_received(const SightingKey& key);  // any answer: the lockstep wait for it ends
   std::optional<runtime::ScanAck> ack_at_or_before(std::size_t robot, std::int64_t utime, bool allow_fallback,
                                                    bool* approximate) const;
   void finish();
+  void end_next_robot();  // lockstep: the mission end to one robot at a time
+  void on_agent_status(const std::string& channel, const void* data, std::size_t size);
   void send_mission_end();
   void report_progress(bool force);
   std::chrono::steady_clock::time_point due_time(std::int64_t utime) const;
@@ -191,12 +208,23 @@ class PlayerNode {
   struct PendingSighting {
     lmf::sighting_t message;
     int attempts = 0;
+    std::chrono::steady_clock::time_point last_sent;
+    bool received = false;  // answered RECEIVED: the final answer follows
   };
+  std::chrono::steady_clock::duration resend_wait(const PendingSighting& sighting) const;
+  void schedule_sighting_resend();
+  void send_sighting(PendingSighting& sighting);
   std::map<SightingKey, PendingSighting> pending_sightings_;  // in time order
+  runtime::RetransmissionTimeout sighting_resend_;
+  std::set<SightingKey> awaiting_receipt_;  // lockstep: published before the next scan, not answered yet
+  std::optional<int> receipt_timer_;        // lockstep: the longest wait for them (ack_timeout)
   std::optional<int> sighting_timer_;
   std::optional<int> end_wait_timer_;
   std::set<SightingKey> published_sightings_;
   bool ending_ = false;  // the replay is over; mission_end_t once no sighting is pending
+  std::size_t ending_robot_ = 0;                      // lockstep: index of the robot being ended
+  std::chrono::steady_clock::time_point ending_robot_since_;
+  std::vector<bool> robot_done_;                      // [robot]: its agent reported mission_done
 
   bool started_ = false;
   bool replay_done_ = false;  // every scan sent (and, lockstep, acked or given up)

@@ -30,6 +30,12 @@ void AgentOptions::validate() const {
   if (robot_id < 0) throw std::invalid_argument("robot id must be >= 0, got " + to_string(robot_id));
   local_map.validate();
   if (resend_interval.count() <= 0) throw std::invalid_argument("resend interval must be > 0 ms");
+  if (min_resend_interval.count() <= 0 || min_resend_interval > resend_interval) {
+    throw std::invalid_argument("min resend interval must be > 0 ms and at most the resend interval (" +
+                                to_string(resend_interval.count()) + " ms), got " +
+                                to_string(min_resend_interval.count()) + " ms");
+  }
+  if (ack_hold.count() <= 0) throw std::invalid_argument("ack hold must be > 0 ms");
   if (status_interval.count() <= 0) throw std::invalid_argument("status interval must be > 0 ms");
   if (max_seq_gap <= 0) throw std::invalid_argument("max_seq_gap must be > 0");
   if (ack_history == 0) throw std::invalid_argument("ack_history must be > 0");
@@ -44,7 +50,8 @@ AgentNode::AgentNode(rt::Bus& bus, rt::EventLoop& loop, AgentOptions options)
       loop_(loop),
       options_((options.validate(), std::move(options))),
       local_map_(options_.local_map, options_.robot_id),
-      drop_random_(options_.drop_seed) {
+      drop_random_(options_.drop_seed),
+      map_resend_(rt::RetransmissionConfig{options_.min_resend_interval, options_.resend_interval}) {
   if (!options_.state_dir.empty()) {
     std::error_code error;
     std::filesystem::create_directories(options_.state_dir, error);
@@ -71,11 +78,6 @@ AgentNode::AgentNode(rt::Bus& bus, rt::EventLoop& loop, AgentOptions options)
       ch.mission_end(), [this](const std::string& c, const void* d, std::size_t n) {
         if (!stalled_) on_mission_end(c, d, n);
       }));
-  // Checked a few times per interval so a map is resent within ~1.25 intervals of its last send.
-  const auto tick = std::max(std::chrono::milliseconds(5), options_.resend_interval / 4);
-  timers_.push_back(loop_.every(tick, [this] {
-    if (!stalled_) resend_due();
-  }));
   timers_.push_back(loop_.every(options_.status_interval, [this] {
     if (!stalled_) publish_status();
   }));
@@ -142,6 +144,8 @@ void AgentNode::persist() {
 }
 
 AgentNode::~AgentNode() {
+  if (resend_timer_) loop_.cancel(*resend_timer_);
+  if (hold_timer_) loop_.cancel(*hold_timer_);
   for (const int id : timers_) loop_.cancel(id);
   for (const int id : subscriptions_) bus_.unsubscribe(id);
 }
@@ -170,6 +174,7 @@ void AgentNode::on_scan(const std::string& channel, const void* data, std::size_
       if (earlier->utime == s.scan.utime) {
         // A lockstep resend (our ack was lost or late), or a player restarted on this log.
         ++counters_.scans_duplicate;
+        if (held_ack_ && held_ack_->ack.seq == s.seq) return;  // its ack follows the map's answer
         send_ack(*earlier);
         return;
       }
@@ -199,6 +204,7 @@ void AgentNode::on_scan(const std::string& channel, const void* data, std::size_
            channel);
     return;
   }
+  if (held_ack_) release_held_ack(held_ack_->map_seq);  // the player went on without it (--rate)
   process(s);
 }
 
@@ -261,13 +267,43 @@ void AgentNode::process(const rt::RobotScan& scan) {
     origin_ = AgentState::Origin{scan.seq, scan.scan.utime, scan.scan.odometry, ack};
     persist();
   }
+  if (shipped) {
+    hold_ack(*shipped, ack);
+    transmit(*shipped, pending_.at(*shipped));
+    return;
+  }
   if (shipped) transmit(*shipped, pending_.at(*shipped));
   send_ack(ack);
-  if (options_.test_stall_after_scan && scan.seq >= *options_.test_stall_after_scan) {
+  acknowledged(scan.seq);
+}
+
+void AgentNode::acknowledged(std::int64_t scan_seq) {
+  if (options_.test_stall_after_scan && scan_seq >= *options_.test_stall_after_scan) {
     stalled_ = true;
-    std::cerr << "lmf-agent " << options_.robot_id << ": stalled after scan " << scan.seq
+    std::cerr << "lmf-agent " << options_.robot_id << ": stalled after scan " << scan_seq
               << " (--test-stall-after-scan): waiting to be killed\n";
   }
+}
+
+void AgentNode::hold_ack(std::int64_t map_seq, const rt::ScanAck& ack) {
+  ++counters_.scan_acks_held;
+  held_ack_ = HeldAck{map_seq, ack};
+  hold_timer_ = loop_.after(options_.ack_hold, [this] {
+    hold_timer_.reset();
+    if (stalled_ || !held_ack_) return;
+    ++counters_.scan_ack_holds_expired;
+    release_held_ack(held_ack_->map_seq);
+  });
+}
+
+void AgentNode::release_held_ack(std::int64_t map_seq) {
+  if (!held_ack_ || held_ack_->map_seq != map_seq) return;
+  if (hold_timer_) loop_.cancel(*hold_timer_);
+  hold_timer_.reset();
+  const rt::ScanAck ack = held_ack_->ack;
+  held_ack_.reset();
+  send_ack(ack);
+  acknowledged(ack.seq);
 }
 
 void AgentNode::send_ack(const rt::ScanAck& ack) {
@@ -305,23 +341,44 @@ std::optional<std::int64_t> AgentNode::ship() {
 void AgentNode::transmit(std::int64_t seq, PendingMap& map) {
   (void)seq;
   map.last_sent = std::chrono::steady_clock::now();
+  ++map.sends;
   ++counters_.map_transmissions;
   if (options_.drop_local_maps > 0.0 &&
       std::uniform_real_distribution<double>(0.0, 1.0)(drop_random_) < options_.drop_local_maps) {
     ++counters_.map_transmissions_dropped;
-    return;
+  } else {
+    bus_.publish_raw(options_.channels.local_map(), map.bytes);
   }
-  bus_.publish_raw(options_.channels.local_map(), map.bytes);
+  schedule_resend();
+}
+
+std::chrono::steady_clock::duration AgentNode::resend_wait(const PendingMap& map) const {
+  if (map.received) return options_.resend_interval;
+  return map_resend_.timeout(std::max(1, map.sends));
+}
+
+void AgentNode::schedule_resend() {
+  if (resend_timer_) loop_.cancel(*resend_timer_);
+  resend_timer_.reset();
+  if (pending_.empty()) return;
+  auto due = std::chrono::steady_clock::time_point::max();
+  for (const auto& entry : pending_) due = std::min(due, entry.second.last_sent + resend_wait(entry.second));
+  const auto delay = std::max(due - std::chrono::steady_clock::now(), std::chrono::steady_clock::duration::zero());
+  resend_timer_ = loop_.after(std::chrono::ceil<std::chrono::milliseconds>(delay), [this] {
+    resend_timer_.reset();
+    if (!stalled_) resend_due();
+  });
 }
 
 void AgentNode::resend_due() {
   const auto now = std::chrono::steady_clock::now();
   for (auto& [seq, map] : pending_) {
-    if (now - map.last_sent >= options_.resend_interval) {
+    if (now - map.last_sent >= resend_wait(map)) {
       ++counters_.map_resends;
       transmit(seq, map);
     }
   }
+  schedule_resend();
 }
 
 std::vector<std::int64_t> AgentNode::unacknowledged_maps() const {
@@ -345,10 +402,21 @@ void AgentNode::on_local_map_ack(const std::string& channel, const void* data, s
     }
     return;  // an ack of a map acked before (a resend crossed the first ack): nothing to do
   }
+  PendingMap& map = it->second;
+  // Karn's rule: only the first answer to a map sent once times the round trip.
+  if (map.sends == 1 && !map.received) map_resend_.on_round_trip(std::chrono::steady_clock::now() - map.last_sent);
+  release_held_ack(a.seq);
+  if (a.status == rt::LocalMapAck::Status::kReceived) {
+    map.received = true;
+    schedule_resend();
+    return;
+  }
   pending_.erase(it);
   ++counters_.maps_acknowledged;
   if (a.status == rt::LocalMapAck::Status::kQueued) ++counters_.maps_queued;
   persist();  // a restart will not resend it
+  schedule_resend();
+  if (mission_done()) publish_status();  // a lockstep player waits for it to end the next robot
 }
 
 // ---- corrected frames ----------------------------------------------------------------------
@@ -407,6 +475,7 @@ void AgentNode::on_mission_end(const std::string& channel, const void* data, std
   mission_ended_ = true;
   if (!map_has_scans_) {
     persist();
+    if (mission_done()) publish_status();
     return;
   }
   // Ship the unfinished map so every scan belongs to a fused local map; the
@@ -417,6 +486,7 @@ void AgentNode::on_mission_end(const std::string& channel, const void* data, std
   }
   persist();
   if (shipped) transmit(*shipped, pending_.at(*shipped));
+  if (mission_done()) publish_status();
 }
 
 // ---- status -----------------------------------------------------------------------------------

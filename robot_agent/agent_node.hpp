@@ -5,9 +5,10 @@
 //                             ship: snapshot, reset, publish local_map_t
 //   LMF_SCAN_ACK         out  after every processed scan (and after the map it
 //                             shipped, if any), with the state after the scan
-//   LMF_LOCAL_MAP        out  each shipped map, resent every resend_interval
-//                             until the server acknowledges it
-//   LMF_LOCAL_MAP_ACK    in   FUSED / DUPLICATE / QUEUED: stop resending
+//   LMF_LOCAL_MAP        out  each shipped map, resent until the server
+//                             acknowledges it (waits below)
+//   LMF_LOCAL_MAP_ACK    in   RECEIVED: resend only every resend_interval;
+//                             FUSED / DUPLICATE / QUEUED: stop resending
 //   LMF_CORRECTED_FRAMES in   x_WL of this robot: global pose = x_WL ⊕ x_LR
 //   LMF_MISSION_END      in   ship the unfinished map, resend until acked
 //   LMF_AGENT_STATUS     out  every status_interval
@@ -23,6 +24,21 @@
 // number). A scan older in time than the last one processed is out_of_range.
 // Every refusal is counted by reason (rejects()) and logged rate-limited;
 // nothing a message holds can stop the agent.
+//
+// Local map resends (runtime/retransmission_timeout.hpp): until the server
+// answers RECEIVED (on receipt, before the fusion), a map is resent after a
+// wait learned from those answers' round trips, between min_resend_interval
+// and resend_interval, doubled per further send; once received, every
+// resend_interval until its final answer (which waits for the fusion).
+//
+// A scan that made a map ship is acknowledged once the server has answered
+// that map (any answer), so a lockstep player, which sends the next scan only
+// after this ack, cannot let anything overtake the map on its way to the
+// server: a FIFO server then fuses in lmf-offline's order even when datagrams
+// are lost. The hold ends early when the next scan arrives (a --rate player
+// does not wait), and after ack_hold (a server that is down or late costs
+// that much per map, not a stall). Status goes out at once when the
+// mission is done (a lockstep player ends the robots one by one on it).
 //
 // Corrected frames: x_WL is the origin of local map last_applied_seq + 1. The
 // agent may be ahead (it shipped maps the server has not fused yet); it then
@@ -60,6 +76,7 @@
 #include "runtime/event_loop.hpp"
 #include "runtime/messages.hpp"
 #include "runtime/rejection.hpp"
+#include "runtime/retransmission_timeout.hpp"
 
 namespace lmf::robot_agent {
 
@@ -67,7 +84,9 @@ struct AgentOptions {
   int robot_id = 0;
   LocalMapConfig local_map;
   runtime::Channels channels;
-  std::chrono::milliseconds resend_interval{1000};  // > 0
+  std::chrono::milliseconds resend_interval{1000};  // > 0: the longest resend wait
+  std::chrono::milliseconds min_resend_interval{5};  // > 0, <= resend_interval: the shortest
+  std::chrono::milliseconds ack_hold{1000};          // > 0: the longest a scan's ack waits for its map's answer
   std::chrono::milliseconds status_interval{200};   // > 0
   std::int64_t max_seq_gap = 1000;  // a scan further ahead than this is refused (> 0)
   // Acks kept to answer scans sent again (> 0; ~130 bytes each: 100000 is
@@ -102,6 +121,8 @@ struct AgentCounters {
   std::int64_t map_transmissions = 0;  // publish attempts, resends included
   std::int64_t map_transmissions_dropped = 0;  // by the simulated loss
   std::int64_t map_resends = 0;
+  std::int64_t scan_acks_held = 0;       // acks of scans that shipped a map, held for its answer
+  std::int64_t scan_ack_holds_expired = 0;  // of those, sent after ack_hold without an answer
   std::int64_t ship_failures = 0;      // snapshots the converter refused (lost maps)
   std::int64_t ack_failures = 0;       // scan acks the converter refused
   std::int64_t scan_errors = 0;        // LocalMap threw on a scan that decoded fine
@@ -154,6 +175,12 @@ class AgentNode {
   struct PendingMap {
     std::vector<std::uint8_t> bytes;  // the encoded local_map_t
     std::chrono::steady_clock::time_point last_sent;
+    int sends = 0;                    // in this process
+    bool received = false;            // answered RECEIVED: the final answer follows a fusion
+  };
+  struct HeldAck {                    // the ack of the scan that shipped map_seq
+    std::int64_t map_seq = 0;
+    runtime::ScanAck ack;
   };
   struct Frame {
     std::int64_t map_seq = 0;  // the local map whose origin x_WL is
@@ -175,7 +202,13 @@ class AgentNode {
   void restore(const AgentState& state);
   void persist();
   void transmit(std::int64_t seq, PendingMap& map);
+  std::chrono::steady_clock::duration resend_wait(const PendingMap& map) const;
+  void schedule_resend();  // the timer, at the earliest resend due
   void resend_due();
+  void hold_ack(std::int64_t map_seq, const runtime::ScanAck& ack);
+  void release_held_ack(std::int64_t map_seq);  // sends it, if it waits for map_seq
+  // A new scan ack went out (sent now or released from its hold).
+  void acknowledged(std::int64_t scan_seq);
   void on_local_map_ack(const std::string& channel, const void* data, std::size_t size);
   void on_corrected_frames(const std::string& channel, const void* data, std::size_t size);
   void on_mission_end(const std::string& channel, const void* data, std::size_t size);
@@ -201,6 +234,10 @@ class AgentNode {
   bool stalled_ = false;
 
   std::map<std::int64_t, PendingMap> pending_;        // shipped, not acked
+  runtime::RetransmissionTimeout map_resend_;
+  std::optional<int> resend_timer_;
+  std::optional<HeldAck> held_ack_;
+  std::optional<int> hold_timer_;
   std::map<std::int64_t, Pose2> shipped_final_x_LR_;  // per shipped map, for chaining frames
   std::optional<Frame> frame_;
   bool mission_ended_ = false;

@@ -1,5 +1,6 @@
 // lmf-agent: one robot's local map over LCM (docs/design.md §1, §4). See --help and
 // robot_agent/agent_node.hpp for the protocol.
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <exception>
@@ -27,6 +28,8 @@ int main(int argc, char** argv) {
   int robot_id = -1;
   std::string config_file;
   int resend_ms = 1000;
+  int min_resend_ms = 5;
+  int ack_hold_ms = 1000;
   double drop = 0.0;
   std::uint64_t drop_seed = 1;
   std::string state_dir;
@@ -38,7 +41,15 @@ int main(int argc, char** argv) {
       ("robot-id", po::value(&robot_id)->required(), "this robot's id (>= 0): listens on <prefix>SCAN_<id>")
       ("config", po::value(&config_file), "mission JSON config; its local_map section is used (default: built-in)")
       ("resend-interval-ms", po::value(&resend_ms)->default_value(resend_ms),
-       "resend an unacknowledged local map after this many ms")
+       "the longest wait before resending an unacknowledged local map (before the server's first answer,\n"
+       "and once it answered RECEIVED)")
+      ("ack-hold-ms", po::value(&ack_hold_ms)->default_value(ack_hold_ms),
+       "the ack of a scan that made a local map ship waits for the server's answer to that map, at most\n"
+       "this many ms (so a lockstep player cannot let anything overtake the map; a server that is down\n"
+       "costs this much per map)")
+      ("min-resend-interval-ms", po::value(&min_resend_ms)->default_value(min_resend_ms),
+       "the shortest resend wait (the wait follows the server's measured round trip in between;\n"
+       "capped at --resend-interval-ms)")
       ("drop-local-maps", po::value(&drop)->default_value(drop),
        "for tests: drop this fraction in [0, 1) of local-map transmissions (first sends and resends)")
       ("drop-seed", po::value(&drop_seed)->default_value(drop_seed), "seed of the simulated loss")
@@ -59,6 +70,8 @@ int main(int argc, char** argv) {
     options.robot_id = robot_id;
     options.channels = rt::Channels(common.channel_prefix);
     options.resend_interval = std::chrono::milliseconds(resend_ms);
+    options.min_resend_interval = std::min(std::chrono::milliseconds(min_resend_ms), options.resend_interval);
+    options.ack_hold = std::chrono::milliseconds(ack_hold_ms);
     options.drop_local_maps = drop;
     options.drop_seed = drop_seed;
     options.state_dir = state_dir;

@@ -747,7 +747,7 @@ Checked<LocalMapAck> from_message(const lmf::local_map_ack_t& msg, const DecodeL
   if (auto r = check_nonnegative(msg.robot_id, "local_map_ack_t.robot_id")) return *r;
   if (auto r = check_nonnegative(msg.seq, "local_map_ack_t.seq")) return *r;
   if (msg.status != lmf::local_map_ack_t::FUSED && msg.status != lmf::local_map_ack_t::DUPLICATE &&
-      msg.status != lmf::local_map_ack_t::QUEUED) {
+      msg.status != lmf::local_map_ack_t::QUEUED && msg.status != lmf::local_map_ack_t::RECEIVED) {
     return reject(RejectReason::kOutOfRange, "local_map_ack_t.status = " + to_string(msg.status));
   }
   return LocalMapAck{msg.utime, msg.robot_id, msg.seq, static_cast<LocalMapAck::Status>(msg.status)};
@@ -767,7 +767,7 @@ Checked<SightingAck> from_message(const lmf::sighting_ack_t& msg, const DecodeLi
   if (auto r = check_nonnegative(msg.observer_id, "sighting_ack_t.observer_id")) return *r;
   if (auto r = check_nonnegative(msg.observed_id, "sighting_ack_t.observed_id")) return *r;
   if (msg.status != lmf::sighting_ack_t::APPLIED && msg.status != lmf::sighting_ack_t::DUPLICATE &&
-      msg.status != lmf::sighting_ack_t::REJECTED) {
+      msg.status != lmf::sighting_ack_t::REJECTED && msg.status != lmf::sighting_ack_t::RECEIVED) {
     return reject(RejectReason::kOutOfRange, "sighting_ack_t.status = " + to_string(msg.status));
   }
   return SightingAck{msg.utime, msg.observer_id, msg.observed_id, static_cast<SightingAck::Status>(msg.status)};
@@ -793,7 +793,9 @@ namespace lmf {
 const std::int8_t local_map_ack_t::FUSED;
 const std::int8_t local_map_ack_t::DUPLICATE;
 const std::int8_t local_map_ack_t::QUEUED;
+const std::int8_t local_map_ack_t::RECEIVED;
 const std::int8_t sighting_ack_t::APPLIED;
 const std::int8_t sighting_ack_t::DUPLICATE;
 const std::int8_t sighting_ack_t::REJECTED;
+const std::int8_t sighting_ack_t::RECEIVED;
 }  // namespace lmf

@@ -40,7 +40,7 @@ struct MissionEnd {
 
 // The server's answer to local map (robot_id, seq).
 struct LocalMapAck {
-  enum class Status : std::int8_t { kFused = 0, kDuplicate = 1, kQueued = 2 };  // = local_map_ack_t constants
+  enum class Status : std::int8_t { kFused = 0, kDuplicate = 1, kQueued = 2, kReceived = 3 };  // = local_map_ack_t constants
   std::int64_t utime = 0;
   int robot_id = 0;
   std::int64_t seq = 0;
@@ -49,7 +49,7 @@ struct LocalMapAck {
 
 // The server's answer to the sighting (utime, observer_id, observed_id).
 struct SightingAck {
-  enum class Status : std::int8_t { kApplied = 0, kDuplicate = 1, kRejected = 2 };  // = sighting_ack_t constants
+  enum class Status : std::int8_t { kApplied = 0, kDuplicate = 1, kRejected = 2, kReceived = 3 };  // = sighting_ack_t constants
   std::int64_t utime = 0;
   int observer_id = 0;
   int observed_id = 0;

@@ -1,6 +1,6 @@
 // How long to wait for an answer before sending again, learned from the
 // answers (the smoothed round trip of RFC 6298). The player's lockstep scans
-// use it (local maps and sightings keep fixed waits: docs/reliability.md). It waits
+// and sightings and the agent's local maps use it (docs/reliability.md). It waits
 //
 //   RTO = clamp(SRTT + 4 RTTVAR, min, max),  SRTT ← 7/8 SRTT + 1/8 R,
 //                                             RTTVAR ← 3/4 RTTVAR + 1/4 |SRTT − R|,

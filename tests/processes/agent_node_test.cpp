@@ -157,8 +157,9 @@ TEST(AgentNode, ShipsBeforeTheAckResendsUntilAckedAndChainsCorrectedFrames) {
   AgentOptions options = options_for(2);
   options.local_map.ship_distance_m = 2.0;
   Rig rig(options);
-  // Order on the bus: a shipped map's first transmission comes right before
-  // the ack of the scan that shipped it (resends may come at any time).
+  // Order on the bus: a shipped map's first transmission comes before the ack
+  // of the scan that shipped it, with only resends in between (that ack waits
+  // for the map's answer: here none, so ack_hold or the next scan ends it).
   std::vector<std::int64_t> order;  // map seq, or -1 for a scan ack
   rig.bus.subscribe(rig.channels.local_map(), [&](const std::string&, const void* d, std::size_t n) {
     order.push_back(rt::decode<lmf::LocalMapSnapshot>(d, n).value().seq);
@@ -185,8 +186,12 @@ TEST(AgentNode, ShipsBeforeTheAckResendsUntilAckedAndChainsCorrectedFrames) {
   std::set<std::int64_t> maps_seen;
   for (std::size_t i = 0; i < order.size(); ++i) {
     if (order[i] < 0 || !maps_seen.insert(order[i]).second) continue;
-    ASSERT_LT(i + 1, order.size());
-    EXPECT_EQ(order[i + 1], -1) << "map " << order[i] << " is followed by its scan's ack";
+    std::size_t j = i + 1;
+    for (; j < order.size() && order[j] >= 0; ++j) {
+      EXPECT_TRUE(maps_seen.count(order[j]) != 0) << "map " << order[j] << " went out before the ack of map "
+                                                  << order[i] << "'s scan";
+    }
+    EXPECT_LT(j, order.size()) << "map " << order[i] << " is followed by its scan's ack";
   }
   EXPECT_EQ(maps_seen.size(), static_cast<std::size_t>(shipped));
   ASSERT_EQ(rig.by_seq.size(), static_cast<std::size_t>(shipped));
@@ -247,6 +252,80 @@ TEST(AgentNode, ShipsBeforeTheAckResendsUntilAckedAndChainsCorrectedFrames) {
   rig.drain();
   EXPECT_TRUE(lmf::is_near(*rig.agent->global_pose(),
                            lmf::compose(Pose2(1.0, 2.0, 3.0), rig.agent->local_map().x_LR()), 1e-12, 1e-12));
+}
+
+TEST(AgentNode, AScanThatShippedAMapIsAckedOnceTheServerAnsweredTheMap) {
+  AgentOptions options = options_for(2);
+  options.local_map.ship_distance_m = 2.0;
+  options.resend_interval = 1000ms;
+  options.min_resend_interval = 5ms;
+  options.ack_hold = 1000ms;
+  Rig rig(options);
+  std::int64_t k = 0;
+  // Sends scans one at a time, as a lockstep player, until one makes a map
+  // ship; returns that map's seq.
+  const auto scan_until_ship = [&] {
+    const std::int64_t shipped = rig.agent->counters().maps_shipped;
+    while (rig.agent->counters().maps_shipped == shipped) {
+      rig.send(rig.scan(k, static_cast<std::size_t>(k)));
+      ++k;
+      rig.drain();
+    }
+    return rig.by_seq.rbegin()->first;
+  };
+
+  // The ack of the scan that ships waits for the map's answer.
+  const std::int64_t first = scan_until_ship();
+  EXPECT_EQ(rig.acks.size(), static_cast<std::size_t>(k - 1));
+  rig.ack_map(first, rt::LocalMapAck::Status::kFused);
+  rig.drain();
+  ASSERT_EQ(rig.acks.size(), static_cast<std::size_t>(k));
+
+  const std::int64_t second = scan_until_ship();
+  EXPECT_EQ(rig.acks.size(), static_cast<std::size_t>(k - 1)) << "held";
+  EXPECT_EQ(rig.agent->counters().scan_acks_held, 2);
+  rig.send(rig.scan(k - 1, static_cast<std::size_t>(k - 1)));  // a lockstep resend meanwhile
+  rig.drain();
+  EXPECT_EQ(rig.acks.size(), static_cast<std::size_t>(k - 1)) << "a resend of the held scan gets nothing yet";
+  rig.ack_map(second, rt::LocalMapAck::Status::kReceived);
+  rig.drain();
+  ASSERT_EQ(rig.acks.size(), static_cast<std::size_t>(k));
+  EXPECT_EQ(rig.acks.back().seq, k - 1);
+  EXPECT_EQ(rig.acks.back().local_map_seq, second + 1);
+  // Received: still pending, now resent only every resend_interval.
+  EXPECT_EQ(rig.agent->unacknowledged_maps(), std::vector<std::int64_t>{second});
+  const std::size_t copies = rig.maps.size();
+  rig.loop.run_for(200ms);
+  EXPECT_EQ(rig.maps.size(), copies) << "no resend within 200 ms of RECEIVED (resend interval 1 s)";
+  rig.ack_map(second, rt::LocalMapAck::Status::kFused);
+  rig.drain();
+  EXPECT_TRUE(rig.agent->unacknowledged_maps().empty());
+
+  // The resend wait follows the answers' round trip (a few ms on memq), not
+  // the 1 s interval: a map that gets no answer goes again within 200 ms, and
+  // after ack_hold its scan's ack goes out without an answer.
+  const auto shipped_at = std::chrono::steady_clock::now();
+  const std::int64_t third = scan_until_ship();
+  EXPECT_EQ(rig.acks.size(), static_cast<std::size_t>(k - 1));
+  ASSERT_TRUE(run_until(rig.loop, [&] { return rig.agent->counters().map_resends >= 1; }, 200ms))
+      << "the learned wait is far below the 1 s resend interval";
+  ASSERT_TRUE(run_until(rig.loop, [&] { return rig.acks.size() == static_cast<std::size_t>(k); }, 3s));
+  EXPECT_GE(std::chrono::steady_clock::now() - shipped_at, 900ms) << "held for ack_hold";
+  EXPECT_EQ(rig.agent->counters().scan_ack_holds_expired, 1);
+  rig.ack_map(third, rt::LocalMapAck::Status::kFused);
+  rig.drain();
+
+  // A --rate player does not wait: the next scan releases the held ack first.
+  const std::int64_t fourth = scan_until_ship();
+  (void)fourth;
+  const std::size_t before = rig.acks.size();
+  rig.send(rig.scan(k, static_cast<std::size_t>(k)));
+  ++k;
+  rig.drain();
+  ASSERT_EQ(rig.acks.size(), before + 2);
+  EXPECT_EQ(rig.acks[before].seq, k - 2);
+  EXPECT_EQ(rig.acks[before + 1].seq, k - 1);
+  EXPECT_EQ(rig.agent->counters().scan_acks_held, 4);
 }
 
 TEST(AgentNode, MissionEndShipsTheUnfinishedMapAndResendsUntilAcked) {
@@ -322,6 +401,12 @@ TEST(AgentNode, OptionsAreValidated) {
   EXPECT_THROW(AgentNode(bus, loop, bad), std::invalid_argument);
   bad = options_for(0);
   bad.resend_interval = 0ms;
+  EXPECT_THROW(AgentNode(bus, loop, bad), std::invalid_argument);
+  bad = options_for(0);
+  bad.min_resend_interval = bad.resend_interval + 1ms;
+  EXPECT_THROW(AgentNode(bus, loop, bad), std::invalid_argument);
+  bad = options_for(0);
+  bad.ack_hold = 0ms;
   EXPECT_THROW(AgentNode(bus, loop, bad), std::invalid_argument);
   bad = options_for(0);
   bad.local_map.ship_distance_m = -1.0;

@@ -222,9 +222,8 @@ struct Rig : lmf::testing::AgentProbe {
     s.scan = sim_scans().at(static_cast<std::size_t>(seq));
     bus.publish(channels.scan(0), rt::to_message(s));
   }
-  void ack_map(std::int64_t seq) {
-    bus.publish(channels.local_map_ack(),
-                rt::to_message(rt::LocalMapAck{1, 0, seq, rt::LocalMapAck::Status::kFused}));
+  void ack_map(std::int64_t seq, rt::LocalMapAck::Status status = rt::LocalMapAck::Status::kFused) {
+    bus.publish(channels.local_map_ack(), rt::to_message(rt::LocalMapAck{1, 0, seq, status}));
   }
   std::vector<std::int64_t> transmitted_since(std::size_t first) const {
     std::vector<std::int64_t> seqs;
@@ -254,11 +253,12 @@ TEST(AgentRestart, ResendsUnacknowledgedMapsAndContinuesFromThePersistedOrigin) 
     if (agent->counters().maps_shipped == 2) origin_seq = seq;
   }
   ASSERT_TRUE(origin_seq.has_value()) << "the mission is too short to ship two maps";
+  rig.ack_map(0);
+  rig.ack_map(1, rt::LocalMapAck::Status::kReceived);  // releases its scan's ack; map 1 stays unacknowledged
+  rig.drain();
   const rt::ScanAck origin_ack = rig.acks.back();
   ASSERT_EQ(origin_ack.seq, *origin_seq);
   EXPECT_EQ(origin_ack.local_map_seq, 2);
-  rig.ack_map(0);
-  rig.drain();
   ASSERT_EQ(agent->unacknowledged_maps(), std::vector<std::int64_t>{1});
   const lmf::LocalMapSnapshot map1 = rig.maps.back();
   ASSERT_EQ(map1.seq, 1);
@@ -463,14 +463,17 @@ TEST(AgentRestart, LockstepMissionCompletesWithNothingLost) {
   };
   // The victim's first life, deterministic: it goes deaf (as hung) after 60 %
   // of its scans, and its map transmissions are lost with a seeded 50 % and no
-  // resend is due (seed 3: the first gets through, the second is dropped), so
-  // it dies mid-map with a map acknowledged and one the server never received.
+  // resend is due (seed 3: the first gets through, the second is dropped; the
+  // scan that shipped it is acked after a short hold), so it dies mid-map with
+  // a map acknowledged and one the server never received.
   const auto& victim_scans = inputs.robots.at(kVictim).scans;
   AgentOptions first_life = agent_options(kVictim);
   first_life.test_stall_after_scan = static_cast<std::int64_t>(victim_scans.size() * 3 / 5);
   first_life.drop_local_maps = 0.5;
   first_life.drop_seed = 3;
   first_life.resend_interval = 600s;
+  first_life.min_resend_interval = 600s;
+  first_life.ack_hold = 50ms;
   std::map<int, std::unique_ptr<AgentNode>> agents;
   for (const auto& robot : inputs.robots) {
     agents[robot.robot_id] = std::make_unique<AgentNode>(

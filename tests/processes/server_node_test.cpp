@@ -93,7 +93,11 @@ TEST_F(ServerNodeTest, AcksEachLocalMapOnceAndDuplicatesAreNotRefused) {
   for (std::int64_t seq = 0; seq < 4; ++seq) bus_.publish(channels_.local_map(), to_msg(make_map(0, seq)));
   ASSERT_TRUE(run_until([&] { return node.stats().acks_fused == 4; }));
   settle(node);
-  for (std::int64_t seq = 0; seq < 4; ++seq) EXPECT_EQ(count_acks(0, seq, Status::kFused), 1) << "seq " << seq;
+  for (std::int64_t seq = 0; seq < 4; ++seq) {
+    EXPECT_EQ(count_acks(0, seq, Status::kFused), 1) << "seq " << seq;
+    EXPECT_EQ(count_acks(0, seq, Status::kReceived), 1) << "seq " << seq << ": answered on receipt too";
+    EXPECT_LT(first_ack(0, seq, Status::kReceived), first_ack(0, seq, Status::kFused)) << "seq " << seq;
+  }
   EXPECT_EQ(node.view().fusion_count, 4);
   const auto counts = node.view().counts;
   EXPECT_GE(counts.segments, 1);
@@ -200,7 +204,8 @@ TEST_F(ServerNodeTest, BadMessagesAreRejectedByReasonAndLeaveTheMapUnchanged) {
   EXPECT_EQ(count_sighting_acks(500'000, 0, 2, lmf::sighting_ack_t::DUPLICATE), 1);
   EXPECT_EQ(count_sighting_acks(600'000, 0, 9, lmf::sighting_ack_t::REJECTED), 1);
   EXPECT_EQ(count_sighting_acks(600'000, 0, 0, lmf::sighting_ack_t::REJECTED), 1);
-  EXPECT_EQ(sighting_acks_.size(), 4u);
+  EXPECT_EQ(count_sighting_acks(500'000, 0, 2, lmf::sighting_ack_t::RECEIVED), 1) << "on receipt, before APPLIED";
+  EXPECT_EQ(sighting_acks_.size(), 5u);
 
   // Only the valid queued map of robot 3 reached the GlobalMap, which did not fuse it.
   const lmf::server::MapView& after = node.view();
@@ -255,6 +260,7 @@ TEST_F(ServerNodeTest, FullQueueDefersWithoutAckAndResendsAreFusedOnce) {
     EXPECT_EQ(count_acks(0, seq, Status::kFused), 1) << "seq " << seq;
     EXPECT_LE(count_acks(0, seq, Status::kQueued), 1) << "seq " << seq;
     EXPECT_EQ(count_acks(0, seq, Status::kDuplicate), 0) << "seq " << seq;
+    EXPECT_GE(count_acks(0, seq, Status::kReceived), 1) << "seq " << seq << ": taken, so answered on receipt";
   }
   EXPECT_EQ(node.view().fusion_count, kMaps);
   EXPECT_EQ(node.view().counts.queued_local_maps, 0);

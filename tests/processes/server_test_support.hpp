@@ -140,6 +140,14 @@ class ServerNodeFixture : public ::testing::Test {
     loop_.run_for(std::chrono::milliseconds(20));
   }
 
+  // Index in arrival order of the first such ack (the count of acks if none).
+  std::size_t first_ack(int robot, std::int64_t seq, Status status) const {
+    for (std::size_t i = 0; i < acks_.size(); ++i) {
+      const auto& [r, s, st] = acks_[i];
+      if (r == robot && s == seq && st == status) return i;
+    }
+    return acks_.size();
+  }
   // How often (robot, seq) was acked with `status`.
   int count_acks(int robot, std::int64_t seq, Status status) const {
     int n = 0;

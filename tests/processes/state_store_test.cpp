@@ -314,7 +314,9 @@ class ServerStateTest : public lmf::testing::ServerNodeFixture {
   ServerStateTest() {
     bus_.subscribe_message<lmf::sighting_ack_t>(
         channels_.sighting_ack(),
-        [this](const std::string&, const lmf::sighting_ack_t& ack) { sighting_acks_.push_back(ack.status); });
+        [this](const std::string&, const lmf::sighting_ack_t& ack) {
+          if (ack.status != lmf::sighting_ack_t::RECEIVED) sighting_acks_.push_back(ack.status);
+        });
   }
   lmf::server::ServerOptions options(const fs::path& state, const std::string& name) const {
     lmf::server::ServerOptions o;
@@ -335,7 +337,7 @@ class ServerStateTest : public lmf::testing::ServerNodeFixture {
     return out.str();
   }
 
-  std::vector<std::int8_t> sighting_acks_;  // statuses, in arrival order
+  std::vector<std::int8_t> sighting_acks_;  // final statuses (not RECEIVED), in arrival order
 };
 
 TEST_F(ServerStateTest, ARestartedServerContinuesBitIdentically) {

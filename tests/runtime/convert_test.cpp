@@ -281,6 +281,14 @@ TEST(Convert, AcksRoundTrip) {
   ASSERT_TRUE(map_ack.ok());
   EXPECT_EQ(map_ack.value().seq, 5);
   EXPECT_EQ(map_ack.value().status, LocalMapAck::Status::kQueued);
+  EXPECT_EQ(through_bytes<LocalMapAck>(rt::to_message(LocalMapAck{20, 2, 5, LocalMapAck::Status::kReceived}))
+                .value()
+                .status,
+            LocalMapAck::Status::kReceived);
+  EXPECT_EQ(through_bytes<SightingAck>(rt::to_message(SightingAck{1, 0, 1, SightingAck::Status::kReceived}))
+                .value()
+                .status,
+            SightingAck::Status::kReceived);
   const auto sighting_ack =
       through_bytes<SightingAck>(rt::to_message(SightingAck{600'000, 1, 2, SightingAck::Status::kRejected}));
   ASSERT_TRUE(sighting_ack.ok());
@@ -570,7 +578,7 @@ TEST(ConvertRejects, OutOfRange) {
   ack.status = 9;
   EXPECT_EQ(reason_of(through_bytes<LocalMapAck>(ack)), RejectReason::kOutOfRange);
   auto bad_sighting_ack = rt::to_message(SightingAck{1, 0, 1, SightingAck::Status::kApplied});
-  bad_sighting_ack.status = 3;
+  bad_sighting_ack.status = 9;
   EXPECT_EQ(reason_of(through_bytes<SightingAck>(bad_sighting_ack)), RejectReason::kOutOfRange);
   bad_sighting_ack.status = lmf::sighting_ack_t::APPLIED;
   bad_sighting_ack.observer_id = -1;

@@ -47,8 +47,10 @@ if [[ ${3:-} == inside ]]; then  # ---- inside the namespace: the processes ----
   pids+=($server)
   agent --robot-id 0 --resend-interval-ms 300 >"$out/logs/agent0.log" 2>&1 & agent0=$!
   pids+=($agent0)
-  # Seed 3: the first transmission (map 0) goes out, the second (map 1) is dropped.
+  # Seed 3: the first transmission (map 0) goes out, the second (map 1) is dropped and never
+  # resent; the ack of the scan that shipped it waits 100 ms for an answer that cannot come.
   agent --robot-id 1 --state "$work/state" --test-stall-after-scan "$stall" --resend-interval-ms 600000 \
+    --min-resend-interval-ms 600000 --ack-hold-ms 100 \
     --drop-local-maps 0.5 --drop-seed 3 >"$out/logs/agent1-killed.log" 2>&1 &
   agent1=$!
   pids+=($agent1)
