@@ -50,7 +50,7 @@ int main(int argc, char** argv) {
       ("lockstep", "send one scan at a time in time order, each after the previous one was acknowledged")
       ("ack-timeout-ms", po::value(&ack_timeout_ms)->default_value(ack_timeout_ms),
        "lockstep: the longest wait before resending a scan not acknowledged (the wait follows the measured "
-       "round trip, down to --min-ack-timeout-ms, doubles per resend, and is this before the first ack); "
+       "round trip, down to --min-ack-timeout-ms, doubles per resend, and starts at 200 ms before the first ack); "
        "rate: how long a sighting waits for acks; both: resend a sighting lmf-server has not answered within this time")
       ("min-ack-timeout-ms", po::value(&min_ack_timeout_ms)->default_value(min_ack_timeout_ms),
        "lockstep: the shortest wait before resending a scan (> 0; at most --ack-timeout-ms)")

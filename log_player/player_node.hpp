@@ -34,7 +34,8 @@
 //    before it stands in).
 // Resend waits (runtime/retransmission_timeout.hpp) are learned from round
 // trips, between min_ack_timeout and ack_timeout, doubled per further send;
-// before the first answer, ack_timeout: for lockstep scans from the scans'
+// before the first answer, 200 ms backed off the same way (within those
+// bounds): for lockstep scans from the scans'
 // acks, for sightings from the server's RECEIVED (sent on receipt, before the
 // worker applies it). A sighting received waits for its final answer, resent
 // every ack_timeout.

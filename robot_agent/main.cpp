@@ -41,8 +41,8 @@ int main(int argc, char** argv) {
       ("robot-id", po::value(&robot_id)->required(), "this robot's id (>= 0): listens on <prefix>SCAN_<id>")
       ("config", po::value(&config_file), "mission JSON config; its local_map section is used (default: built-in)")
       ("resend-interval-ms", po::value(&resend_ms)->default_value(resend_ms),
-       "the longest wait before resending an unacknowledged local map (before the server's first answer,\n"
-       "and once it answered RECEIVED)")
+       "the longest wait before resending an unacknowledged local map, and the wait once the server\n"
+       "answered RECEIVED")
       ("ack-hold-ms", po::value(&ack_hold_ms)->default_value(ack_hold_ms),
        "the ack of a scan that made a local map ship waits for the server's answer to that map, at most\n"
        "this many ms (so a lockstep player cannot let anything overtake the map; a server that is down\n"

@@ -8,6 +8,7 @@ namespace lmf::runtime {
 void RetransmissionConfig::validate() const {
   if (min.count() <= 0) throw std::invalid_argument("retransmission min must be > 0 ms");
   if (max < min) throw std::invalid_argument("retransmission max must be >= min");
+  if (initial.count() <= 0) throw std::invalid_argument("retransmission initial must be > 0 ms");
 }
 
 RetransmissionTimeout::RetransmissionTimeout(RetransmissionConfig config) : config_(config) { config_.validate(); }
@@ -26,8 +27,8 @@ void RetransmissionTimeout::on_round_trip(Duration round_trip) {
 
 RetransmissionTimeout::Duration RetransmissionTimeout::timeout(int sends) const {
   const Duration max = config_.max;
-  if (!srtt_) return max;
-  Duration rto = std::clamp<Duration>(*srtt_ + 4 * rttvar_, config_.min, max);
+  const Duration first = srtt_ ? Duration(*srtt_ + 4 * rttvar_) : Duration(config_.initial);
+  Duration rto = std::clamp<Duration>(first, config_.min, max);
   for (int i = 1; i < sends && rto < max; ++i) rto = std::min(2 * rto, max);  // (5.5)
   return rto;
 }

@@ -6,7 +6,13 @@
 //                                             RTTVAR ← 3/4 RTTVAR + 1/4 |SRTT − R|,
 //
 // after a first send, doubled after each further send of the same message
-// (backoff) and never beyond `max`. Before the first answer it waits `max`.
+// (backoff) and never beyond `max`. Before the first answer it waits
+// `initial` (clamped to [min, max]), backed off the same way: a lost first
+// message then costs a fraction of a second rather than `max`, while a peer
+// that is not up yet is asked less and less often. The default, 200 ms, is
+// the floor Linux puts under TCP's RTO: far above a LAN's round trip, and a
+// resend that crosses a late first answer only costs a duplicate the
+// receiver answers again.
 // Only answers to a message sent once are samples (Karn's rule: an answer
 // after a resend may answer either send). On loopback, where an answer takes
 // a millisecond, a lost datagram then costs a few milliseconds, not `max`.
@@ -20,7 +26,8 @@ namespace lmf::runtime {
 
 struct RetransmissionConfig {
   std::chrono::milliseconds min{10};    // > 0: the shortest wait (scheduling noise, a slow peer)
-  std::chrono::milliseconds max{2000};  // >= min: before the first answer, and the longest wait
+  std::chrono::milliseconds max{2000};  // >= min: the longest wait
+  std::chrono::milliseconds initial{200};  // > 0: the first wait before any answer, clamped to [min, max]
   // Throws std::invalid_argument naming the bad field.
   void validate() const;
 };

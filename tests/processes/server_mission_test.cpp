@@ -354,6 +354,7 @@ struct LossyRun {
   std::int64_t dropped = 0;  // publishes lost, all endpoints
   std::int64_t duplicated = 0;
   double seconds = 0.0;
+  std::int64_t bounded_waits_expired = 0;  // agents' ack holds, player's receipt and mission-end waits
 };
 
 LossyRun run_over_lossy_links(const lmf::mission::MissionConfig& config, const lmf::mission::MissionInputs& inputs,
@@ -389,6 +390,8 @@ LossyRun run_over_lossy_links(const lmf::mission::MissionConfig& config, const l
   run.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   EXPECT_EQ(player.counters().scans_given_up, 0);
   EXPECT_EQ(player.counters().sightings_unanswered, 0);
+  run.bounded_waits_expired +=
+      player.counters().sighting_receipt_waits_expired + player.counters().mission_end_waits_expired;
   EXPECT_TRUE(server.shutdown(false));
   run.map = std::make_unique<lmf::fusion::GlobalMap>(*server.map_after_shutdown());
   for (const auto& agent : agents) {
@@ -398,6 +401,7 @@ LossyRun run_over_lossy_links(const lmf::mission::MissionConfig& config, const l
       EXPECT_TRUE(run.map->has_fused(agent->robot_id(), seq)) << "robot " << agent->robot_id() << " map " << seq;
     }
     run.shipped += c.maps_shipped;
+    run.bounded_waits_expired += c.scan_ack_holds_expired;
   }
   EXPECT_EQ(server.view().fusion_count, run.shipped) << "each map fused once, none twice";
   for (const auto& bus : endpoints) {
@@ -436,7 +440,8 @@ TEST(ServerMission, LockstepUnderTwentyPercentLossOnEveryLinkEqualsTheLosslessRu
   }
   std::cout << "lockstep: lossless " << lossless.seconds << " s, 20 % loss + 5 % duplicates on every link "
             << lossy.seconds << " s (" << lossy.seconds / lossless.seconds << "x; " << lossy.dropped
-            << " publishes lost, " << lossy.duplicated << " duplicated); frames up to " << largest_m
+            << " publishes lost, " << lossy.duplicated << " duplicated; " << lossy.bounded_waits_expired
+            << " bounded waits expired); frames up to " << largest_m
             << " m from the lossless run's\n";
   EXPECT_GT(lossy.dropped, 100);
   EXPECT_GT(lossy.duplicated, 10);

@@ -18,11 +18,18 @@ RetransmissionTimeout make(std::chrono::milliseconds min, std::chrono::milliseco
   return RetransmissionTimeout(config);
 }
 
-TEST(RetransmissionTimeout, WaitsTheMaximumBeforeTheFirstAnswer) {
+TEST(RetransmissionTimeout, BeforeTheFirstAnswerStartsAtTheInitialWaitAndBacksOff) {
   const RetransmissionTimeout rto = make(10ms, 2000ms);
-  EXPECT_EQ(rto.timeout(1), 2000ms);
+  EXPECT_EQ(rto.timeout(1), 200ms);
+  EXPECT_EQ(rto.timeout(2), 400ms);
+  EXPECT_EQ(rto.timeout(4), 1600ms);
   EXPECT_EQ(rto.timeout(5), 2000ms);
   EXPECT_FALSE(rto.smoothed_round_trip().has_value());
+}
+
+TEST(RetransmissionTimeout, TheInitialWaitStaysWithinBounds) {
+  EXPECT_EQ(make(500ms, 2000ms).timeout(1), 500ms);
+  EXPECT_EQ(make(10ms, 100ms).timeout(1), 100ms);
 }
 
 TEST(RetransmissionTimeout, FollowsTheRoundTrip) {
@@ -65,6 +72,9 @@ TEST(RetransmissionTimeout, IgnoresNegativeSamples) {
 TEST(RetransmissionTimeout, RejectsABadConfig) {
   EXPECT_THROW(make(0ms, 100ms), std::invalid_argument);
   EXPECT_THROW(make(200ms, 100ms), std::invalid_argument);
+  RetransmissionConfig no_initial;
+  no_initial.initial = 0ms;
+  EXPECT_THROW(RetransmissionTimeout{no_initial}, std::invalid_argument);
   EXPECT_NO_THROW(make(100ms, 100ms));
 }
 
