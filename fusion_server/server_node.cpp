@@ -5,6 +5,7 @@
 #include <exception>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <string_view>
@@ -53,32 +54,7 @@ json report_json(const fusion::FusionReport& r, double queue_wait_ms) {
   return j;
 }
 
-// Nearest-rank order statistics of durations (ms), as lmf-offline reports them.
-json timing_json(std::vector<double> ms) {
-  json j = {{"count", ms.size()}, {"p50_ms", 0.0}, {"p99_ms", 0.0}, {"max_ms", 0.0}, {"mean_ms", 0.0}};
-  if (ms.empty()) return j;
-  std::sort(ms.begin(), ms.end());
-  const auto rank = [&](double q) {
-    const auto k = static_cast<std::size_t>(std::ceil(q * static_cast<double>(ms.size())));
-    return ms[std::clamp<std::size_t>(k, 1, ms.size()) - 1];
-  };
-  double sum = 0.0;
-  for (double v : ms) sum += v;
-  j["p50_ms"] = rank(0.50);
-  j["p99_ms"] = rank(0.99);
-  j["max_ms"] = ms.back();
-  j["mean_ms"] = sum / static_cast<double>(ms.size());
-  return j;
-}
-
-json counts_json(const fusion::MapCounts& c) {
-  return {{"segments", c.segments},
-          {"submaps", c.submaps},
-          {"robots_joined", c.robots_joined},
-          {"graph_edges", c.graph_edges},
-          {"queued_local_maps", c.queued_local_maps},
-          {"state_dimension", c.state_dimension}};
-}
+std::string trajectory_name(int robot_id) { return "robot" + std::to_string(robot_id); }
 
 }  // namespace
 
@@ -566,30 +542,20 @@ MapView ServerNode::make_view() const {
 bool ServerNode::write_outputs(const LoopSnapshot& loop_side) const {
   try {
     std::filesystem::create_directories(options_.out_dir);
-    // trajectories/robotN.txt, trajectory.txt (all robots, time order), map.json, map.svg.
-    const std::map<int, std::vector<StampedPose>> trajectories = book_.final_trajectories(map_);
-    std::filesystem::create_directories(options_.out_dir / "trajectories");
-    std::vector<StampedPose> all;
-    std::vector<fusion::MapTrajectory> drawn;
-    for (const auto& [robot_id, poses] : trajectories) {
-      io::write_trajectory(options_.out_dir / "trajectories" / ("robot" + std::to_string(robot_id) + ".txt"), poses);
-      all.insert(all.end(), poses.begin(), poses.end());
-      fusion::MapTrajectory t;
-      t.label = "robot " + std::to_string(robot_id);
-      for (const StampedPose& p : poses) t.poses.push_back(p.pose);
-      drawn.push_back(std::move(t));
+    // trajectories/robotN.txt, trajectory.txt (all robots, time order), map.json, map.svg:
+    // lmf-offline's writers, with the robots named as in a simulated mission.
+    std::map<std::string, std::vector<StampedPose>> trajectories;
+    for (auto& [robot_id, poses] : book_.final_trajectories(map_)) {
+      trajectories[trajectory_name(robot_id)] = std::move(poses);
     }
-    std::stable_sort(all.begin(), all.end(),
-                     [](const StampedPose& a, const StampedPose& b) { return a.utime < b.utime; });
-    io::write_trajectory(options_.out_dir / "trajectory.txt", all);
-    fusion::write_map_json(map_, options_.out_dir / "map.json");
+    mission::write_trajectories(options_.out_dir, trajectories);
     fusion::MapSvgOptions svg;
     svg.graph = options_.map_svg_graph;
-    fusion::write_map_svg(map_, options_.out_dir / "map.svg", drawn, svg);
+    mission::write_map_files(options_.out_dir, map_, trajectories, svg);
 
     json report;
     report["source"] = "lmf-server";
-    report["map"] = counts_json(map_.counts());
+    report["map"] = mission::map_counts_json(map_.counts());
     report["global_covariance_always_ok"] = covariance_always_ok_;
     std::vector<double> fusion_ms;
     std::vector<double> wait_ms;
@@ -599,22 +565,20 @@ bool ServerNode::write_outputs(const LoopSnapshot& loop_side) const {
       fusion_ms.push_back(f.report.time.total_s * 1e3);
       wait_ms.push_back(f.queue_wait_ms);
     }
-    report["fusion_timing"] = timing_json(std::move(fusion_ms));
-    report["queue_wait_timing"] = timing_json(std::move(wait_ms));
+    report["fusion_timing"] = mission::timing_json(mission::timing_stats(std::move(fusion_ms)));
+    report["queue_wait_timing"] = mission::timing_json(mission::timing_stats(std::move(wait_ms)));
     report["fusions"] = std::move(fusions);
     json sightings = json::array();
     for (const SightingRecord& s : sightings_) {
-      sightings.push_back({{"utime", s.sighting.utime},
-                           {"observer", s.sighting.observer_id},
-                           {"observed", s.sighting.observed_id},
-                           {"status", s.status}});
+      sightings.push_back(mission::sighting_json(s.sighting.utime, s.sighting.observer_id, s.sighting.observed_id,
+                                                 s.status.c_str()));
     }
     report["sightings"] = std::move(sightings);
     json robots = json::array();
     for (int robot_id : map_.robots()) {
       std::size_t fused = 0;
       for (const FusionRecord& f : fusions_) fused += f.report.robot_id == robot_id ? 1 : 0;
-      const auto t = trajectories.find(robot_id);
+      const auto t = trajectories.find(trajectory_name(robot_id));
       robots.push_back({{"robot_id", robot_id},
                         {"local_maps_fused", fused},
                         {"trajectory_poses", t == trajectories.end() ? 0 : t->second.size()}});
@@ -714,7 +678,7 @@ ServerNode::LoopSnapshot ServerNode::loop_snapshot() const {
   return s;
 }
 
-std::vector<std::pair<std::string, std::int64_t>> ServerNode::reject_counts() const {
+runtime::RejectCounts ServerNode::reject_counts() const {
   runtime::RejectCounter all = rejects_;
   all.merge(bus_.rejects());
   return all.nonzero();
@@ -760,22 +724,26 @@ void ServerNode::publish_frames() {
   bus_.publish(channels_.corrected_frames(), msg.value());
 }
 
-lmf::global_map_t ServerNode::make_global_map() const {
-  lmf::global_map_t msg;
-  msg.utime = view_.latest_utime;
-  msg.fusion_count = view_.fusion_count;
-  msg.num_submaps = view_.counts.submaps;
-  msg.num_graph_edges = view_.counts.graph_edges;
-  msg.num_segments = static_cast<std::int32_t>(view_.endpoints.size());
-  msg.endpoints.reserve(view_.endpoints.size());
-  for (const auto& e : view_.endpoints) msg.endpoints.push_back({e[0], e[1], e[2], e[3]});
-  return msg;
+runtime::GlobalMapSummary ServerNode::make_global_map() const {
+  runtime::GlobalMapSummary map;
+  map.utime = view_.latest_utime;
+  map.fusion_count = view_.fusion_count;
+  map.submaps = view_.counts.submaps;
+  map.graph_edges = view_.counts.graph_edges;
+  map.endpoints.reserve(view_.endpoints.size());
+  for (const auto& e : view_.endpoints) map.endpoints.push_back({e[0], e[1], e[2], e[3]});
+  return map;
 }
 
 void ServerNode::publish_global_map() {
   if (stopped_) return;
   last_map_publish_ = Clock::now();
-  bus_.publish(channels_.global_map(), make_global_map());
+  auto msg = runtime::to_message(make_global_map());
+  if (!msg) {
+    std::cerr << "lmf-server: global map not published: " << msg.rejection().describe() << '\n';
+    return;
+  }
+  bus_.publish(channels_.global_map(), msg.value());
 }
 
 void ServerNode::publish_global_map_rate_limited() {
@@ -795,30 +763,37 @@ void ServerNode::publish_global_map_rate_limited() {
   });
 }
 
-lmf::server_status_t ServerNode::make_status() const {
-  lmf::server_status_t msg;
-  msg.utime = wall_utime();
-  msg.num_robots_joined = view_.counts.robots_joined;
-  msg.num_segments = view_.counts.segments;
-  msg.num_submaps = view_.counts.submaps;
-  msg.num_graph_edges = view_.counts.graph_edges;
-  msg.fusions = view_.fusion_count;
-  msg.last_fusion_ms = static_cast<float>(view_.last_fusion_ms);
-  msg.mean_fusion_ms = static_cast<float>(view_.mean_fusion_ms);
-  msg.queue_length = static_cast<std::int32_t>(queue_length());
-  msg.covariance_ok = view_.covariance_ok;
-  msg.min_eigenvalue = view_.min_pivot ? static_cast<float>(*view_.min_pivot) : 0.0f;
-  for (const auto& [name, count] : reject_counts()) {
-    msg.reject_reasons.push_back(name);
-    msg.reject_counts.push_back(count);
+runtime::ServerStatus ServerNode::make_status() const {
+  runtime::ServerStatus s;
+  s.utime = wall_utime();
+  s.robots_joined = view_.counts.robots_joined;
+  s.segments = view_.counts.segments;
+  s.submaps = view_.counts.submaps;
+  s.graph_edges = view_.counts.graph_edges;
+  s.fusions = view_.fusion_count;
+  s.last_fusion_ms = view_.last_fusion_ms;
+  s.mean_fusion_ms = view_.mean_fusion_ms;
+  s.queue_length = static_cast<int>(queue_length());
+  s.covariance_ok = view_.covariance_ok;
+  // The message carries a finite float: a pivot beyond (a NaN comes with
+  // covariance_ok false) reads as the lowest or largest float.
+  if (view_.min_pivot) {
+    constexpr double kLowest = std::numeric_limits<float>::lowest();
+    constexpr double kMax = std::numeric_limits<float>::max();
+    s.min_eigenvalue = std::isnan(*view_.min_pivot) ? kLowest : std::clamp(*view_.min_pivot, kLowest, kMax);
   }
-  msg.num_reject_reasons = static_cast<std::int32_t>(msg.reject_reasons.size());
-  return msg;
+  s.rejects = reject_counts();
+  return s;
 }
 
 void ServerNode::publish_status() {
   if (stopped_) return;
-  bus_.publish(channels_.server_status(), make_status());
+  auto msg = runtime::to_message(make_status());
+  if (!msg) {
+    std::cerr << "lmf-server: status not published: " << msg.rejection().describe() << '\n';
+    return;
+  }
+  bus_.publish(channels_.server_status(), msg.value());
 }
 
 }  // namespace lmf::server

@@ -168,7 +168,7 @@ class ServerNode {
   const ServerStats& stats() const { return stats_; }
   const runtime::RejectCounter& rejects() const { return rejects_; }
   // Rejections of this node and of the bus (decode failures, handler errors), by name.
-  std::vector<std::pair<std::string, std::int64_t>> reject_counts() const;
+  runtime::RejectCounts reject_counts() const;
   // Tasks waiting or running in the worker (any thread).
   bool worker_busy() const { return worker_ && worker_->busy(); }
   std::size_t queue_length() const { return worker_ ? worker_->waiting() : 0; }
@@ -180,9 +180,9 @@ class ServerNode {
   const StateStore* state_store() const { return store_.get(); }
   const StateRecovery& recovery() const { return recovery_; }
 
-  // The message builders, public for tests.
-  lmf::server_status_t make_status() const;
-  lmf::global_map_t make_global_map() const;
+  // What the status and map messages carry, public for tests.
+  runtime::ServerStatus make_status() const;
+  runtime::GlobalMapSummary make_global_map() const;
 
  private:
   // Worker-side results, posted back to the loop.

@@ -553,7 +553,7 @@ void PlayerNode::end_next_robot() {
 }
 
 void PlayerNode::on_agent_status(const std::string& channel, const void* data, std::size_t size) {
-  auto status = rt::decode_message<lmf::agent_status_t>(data, size);
+  auto status = rt::decode<rt::AgentStatus>(data, size);
   if (!status) {
     rejects_.record(status.rejection(), channel);
     return;

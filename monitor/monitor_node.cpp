@@ -55,14 +55,14 @@ MonitorNode::~MonitorNode() {
   }
 }
 
-template <class Msg, class OnMessage>
+template <class Core, class OnMessage>
 void MonitorNode::decode_into(const void* data, std::size_t size, OnMessage on_message) {
-  auto msg = runtime::decode_message<Msg>(data, size);
-  if (!msg) {
-    state_.on_rejected(std::string(runtime::reason_name(msg.rejection().reason)));
+  auto value = runtime::decode<Core>(data, size);
+  if (!value) {
+    state_.on_rejected(std::string(runtime::reason_name(value.rejection().reason)));
     return;
   }
-  on_message(msg.value());
+  on_message(value.value());
 }
 
 void MonitorNode::handle(const std::string& channel, const void* data, std::size_t size,
@@ -70,15 +70,15 @@ void MonitorNode::handle(const std::string& channel, const void* data, std::size
   try {
     state_.count_message(channel);
     if (channel == channels_.agent_status()) {
-      decode_into<lmf::agent_status_t>(data, size, [&](const auto& m) { state_.on_agent_status(m, receive_utime); });
+      decode_into<runtime::AgentStatus>(data, size, [&](const auto& m) { state_.on_agent_status(m, receive_utime); });
     } else if (channel == channels_.server_status()) {
-      decode_into<lmf::server_status_t>(data, size, [&](const auto& m) { state_.on_server_status(m, receive_utime); });
+      decode_into<runtime::ServerStatus>(data, size, [&](const auto& m) { state_.on_server_status(m, receive_utime); });
     } else if (channel == channels_.global_map()) {
-      decode_into<lmf::global_map_t>(data, size, [&](const auto& m) { state_.on_global_map(m, receive_utime); });
+      decode_into<runtime::GlobalMapSummary>(data, size, [&](const auto& m) { state_.on_global_map(m, receive_utime); });
     } else if (channel == channels_.scan_ack()) {
-      decode_into<lmf::scan_ack_t>(data, size, [&](const auto& m) { state_.on_scan_ack(m, receive_utime); });
+      decode_into<runtime::ScanAck>(data, size, [&](const auto& m) { state_.on_scan_ack(m, receive_utime); });
     } else if (channel == channels_.local_map_ack()) {
-      decode_into<lmf::local_map_ack_t>(data, size, [&](const auto& m) { state_.on_local_map_ack(m, receive_utime); });
+      decode_into<runtime::LocalMapAck>(data, size, [&](const auto& m) { state_.on_local_map_ack(m, receive_utime); });
     }
   } catch (const std::exception& e) {
     // Only a bug of ours gets here; the monitor keeps going.

@@ -74,7 +74,7 @@ class MonitorNode {
   const MonitorState& state() const { return state_; }
 
  private:
-  template <class Msg, class OnMessage>
+  template <class Core, class OnMessage>
   void decode_into(const void* data, std::size_t size, OnMessage on_message);
 
   runtime::Bus* bus_ = nullptr;

@@ -19,7 +19,8 @@ using nlohmann::json;
 // JSON has no NaN/inf: those become null so every line parses.
 json number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
-json odometry_model_json(const lmf::odometry_model_t& m) {
+json odometry_model_json(const runtime::OdometryModelReport& report) {
+  const OdometryErrorModel& m = report.model;
   return {{"translation_scale", number(m.translation_scale)},
           {"rotation_scale", number(m.rotation_scale)},
           {"heading_bias_rad_per_m", number(m.heading_bias_rad_per_m)},
@@ -31,8 +32,8 @@ json odometry_model_json(const lmf::odometry_model_t& m) {
           {"phi_per_m", number(m.phi_per_m)},
           {"phi_per_rad", number(m.phi_per_rad)},
           {"phi_turn_distance", number(m.phi_turn_distance)},
-          {"increments_learned", m.increments_learned},
-          {"increments_downweighted", m.increments_downweighted}};
+          {"increments_learned", report.increments_learned},
+          {"increments_downweighted", report.increments_downweighted}};
 }
 
 std::string fixed(double v, int decimals) {
@@ -81,83 +82,65 @@ void MonitorState::count_message(const std::string& channel) {
 
 void MonitorState::on_rejected(const std::string& reason) { ++rejected_[reason]; }
 
-void MonitorState::on_agent_status(const lmf::agent_status_t& msg, std::int64_t receive_utime) {
+void MonitorState::on_agent_status(const runtime::AgentStatus& status, std::int64_t receive_utime) {
   last_receive_utime_ = std::max(last_receive_utime_, receive_utime);
-  RobotRow& row = robot(msg.robot_id);
+  RobotRow& row = robot(status.robot_id);
   row.have_status = true;
-  row.joined = msg.joined;
-  row.scans = msg.scans;
-  row.local_map_segments = msg.local_map_segments;
-  row.scan_p50_ms = msg.scan_time_p50_ms;
-  row.scan_p99_ms = msg.scan_time_p99_ms;
-  row.scan_max_ms = msg.scan_time_max_ms;
-  row.maps_shipped = msg.maps_shipped;
-  row.maps_acknowledged = msg.maps_acknowledged;
-  row.covariance_ok = msg.covariance_ok;
-  row.mission_done = msg.mission_done;
-  row.global_pose = Pose2(msg.global_pose.x, msg.global_pose.y, msg.global_pose.phi);
-  row.odometry_model = msg.odometry_model;
+  row.joined = status.joined;
+  row.scans = status.scans;
+  row.local_map_segments = status.local_map_segments;
+  row.scan_p50_ms = status.scan_time_p50_ms;
+  row.scan_p99_ms = status.scan_time_p99_ms;
+  row.scan_max_ms = status.scan_time_max_ms;
+  row.maps_shipped = status.maps_shipped;
+  row.maps_acknowledged = status.maps_acknowledged;
+  row.covariance_ok = status.covariance_ok;
+  row.mission_done = status.mission_done;
+  row.global_pose = status.x_WR;
+  row.odometry = status.odometry;
   row.rejects = 0;
   // Saturating: the counts come off the network (a forged INT64_MAX must not overflow).
   constexpr std::int64_t kMaxCount = std::numeric_limits<std::int64_t>::max();
-  for (std::int64_t c : msg.reject_counts) {
+  for (const auto& [reason, c] : status.rejects) {
     if (c > 0) row.rejects = row.rejects > kMaxCount - c ? kMaxCount : row.rejects + c;
   }
-  row.status_utime = msg.utime;
-  if (msg.window_scans > 0) {
-    const auto acks = scan_ack_receipts_.find(msg.robot_id);
+  row.status_utime = status.utime;
+  if (status.window_scans > 0) {
+    const auto acks = scan_ack_receipts_.find(status.robot_id);
     std::optional<std::int64_t> mission_utime;
     if (acks != scan_ack_receipts_.end() && !acks->second.empty()) mission_utime = acks->second.back().scan_utime;
-    windows_[msg.robot_id].push_back(
-        {msg.utime, mission_utime, msg.scan_time_max_ms, msg.scan_time_p99_ms, msg.window_scans});
+    windows_[status.robot_id].push_back(
+        {status.utime, mission_utime, status.scan_time_max_ms, status.scan_time_p99_ms, status.window_scans});
   }
 }
 
-void MonitorState::on_server_status(const lmf::server_status_t& msg, std::int64_t receive_utime) {
+void MonitorState::on_server_status(const runtime::ServerStatus& status, std::int64_t receive_utime) {
   last_receive_utime_ = std::max(last_receive_utime_, receive_utime);
-  server_.have_status = true;
-  server_.utime = msg.utime;
-  server_.robots_joined = msg.num_robots_joined;
-  server_.segments = msg.num_segments;
-  server_.submaps = msg.num_submaps;
-  server_.graph_edges = msg.num_graph_edges;
-  server_.fusions = msg.fusions;
-  server_.last_fusion_ms = msg.last_fusion_ms;
-  server_.mean_fusion_ms = msg.mean_fusion_ms;
-  server_.queue_length = msg.queue_length;
-  server_.covariance_ok = msg.covariance_ok;
-  server_.min_eigenvalue = msg.min_eigenvalue;
-  server_.rejects.clear();
-  const std::size_t n = std::min(msg.reject_reasons.size(), msg.reject_counts.size());
-  for (std::size_t i = 0; i < n; ++i) server_.rejects.emplace_back(msg.reject_reasons[i], msg.reject_counts[i]);
+  server_ = status;
 }
 
-void MonitorState::on_global_map(const lmf::global_map_t& msg, std::int64_t receive_utime) {
+void MonitorState::on_global_map(const runtime::GlobalMapSummary& map, std::int64_t receive_utime) {
   last_receive_utime_ = std::max(last_receive_utime_, receive_utime);
-  GlobalMapSummary summary;
-  summary.utime = msg.utime;
-  summary.fusion_count = msg.fusion_count;
-  summary.submaps = msg.num_submaps;
-  summary.graph_edges = msg.num_graph_edges;
-  for (const auto& e : msg.endpoints) {
-    const std::array<double, 4> p = {e[0], e[1], e[2], e[3]};
-    if (std::all_of(p.begin(), p.end(), [](double v) { return std::isfinite(v); })) summary.endpoints.push_back(p);
-  }
+  runtime::GlobalMapSummary summary = map;
+  // Drawn only where finite (convert refuses others; a caller might not use it).
+  std::erase_if(summary.endpoints, [](const std::array<double, 4>& e) {
+    return !std::all_of(e.begin(), e.end(), [](double v) { return std::isfinite(v); });
+  });
   global_map_ = std::move(summary);
   ++global_map_version_;
 }
 
-void MonitorState::on_scan_ack(const lmf::scan_ack_t& msg, std::int64_t receive_utime) {
+void MonitorState::on_scan_ack(const runtime::ScanAck& ack, std::int64_t receive_utime) {
   last_receive_utime_ = std::max(last_receive_utime_, receive_utime);
-  RobotRow& row = robot(msg.robot_id);
+  RobotRow& row = robot(ack.robot_id);
   ++row.scan_acks;
-  row.last_scan_seq = std::max(row.last_scan_seq, msg.seq);
-  scan_ack_receipts_[msg.robot_id].push_back({receive_utime, msg.utime});
+  row.last_scan_seq = std::max(row.last_scan_seq, ack.seq);
+  scan_ack_receipts_[ack.robot_id].push_back({receive_utime, ack.utime});
 }
 
-void MonitorState::on_local_map_ack(const lmf::local_map_ack_t& msg, std::int64_t receive_utime) {
+void MonitorState::on_local_map_ack(const runtime::LocalMapAck& ack, std::int64_t receive_utime) {
   last_receive_utime_ = std::max(last_receive_utime_, receive_utime);
-  ++robot(msg.robot_id).local_map_acks;
+  ++robot(ack.robot_id).local_map_acks;
 }
 
 std::map<int, std::vector<TimingSample>> MonitorState::timing_series() const {
@@ -234,24 +217,24 @@ json MonitorState::to_json(std::int64_t now_utime) const {
                       {"scan_acks", r.scan_acks},
                       {"last_scan_seq", r.last_scan_seq},
                       {"local_map_acks", r.local_map_acks},
-                      {"odometry_model", odometry_model_json(r.odometry_model)}});
+                      {"odometry_model", odometry_model_json(r.odometry)}});
   }
   j["robots"] = std::move(robots);
 
-  if (server_.have_status) {
+  if (server_.has_value()) {
     json rejects = json::object();
-    for (const auto& [name, count] : server_.rejects) rejects[name] = count;
-    j["server"] = {{"utime", server_.utime},
-                   {"robots_joined", server_.robots_joined},
-                   {"segments", server_.segments},
-                   {"submaps", server_.submaps},
-                   {"graph_edges", server_.graph_edges},
-                   {"fusions", server_.fusions},
-                   {"last_fusion_ms", number(server_.last_fusion_ms)},
-                   {"mean_fusion_ms", number(server_.mean_fusion_ms)},
-                   {"queue_length", server_.queue_length},
-                   {"covariance_ok", server_.covariance_ok},
-                   {"min_eigenvalue", number(server_.min_eigenvalue)},
+    for (const auto& [name, count] : server_->rejects) rejects[name] = count;
+    j["server"] = {{"utime", server_->utime},
+                   {"robots_joined", server_->robots_joined},
+                   {"segments", server_->segments},
+                   {"submaps", server_->submaps},
+                   {"graph_edges", server_->graph_edges},
+                   {"fusions", server_->fusions},
+                   {"last_fusion_ms", number(server_->last_fusion_ms)},
+                   {"mean_fusion_ms", number(server_->mean_fusion_ms)},
+                   {"queue_length", server_->queue_length},
+                   {"covariance_ok", server_->covariance_ok},
+                   {"min_eigenvalue", number(server_->min_eigenvalue)},
                    {"rejects", std::move(rejects)}};
   } else {
     j["server"] = nullptr;
@@ -294,24 +277,24 @@ std::string MonitorState::table(std::int64_t now_utime) const {
   }
   for (const auto& [id, r] : robots_) {
     if (!r.have_status) continue;
-    const lmf::odometry_model_t& m = r.odometry_model;
+    const OdometryErrorModel& m = r.odometry.model;
     out << "  robot " << id << " odometry: translation x" << fixed(m.translation_scale, 3) << ", rotation x"
         << fixed(m.rotation_scale, 3) << ", heading sigma " << fixed(m.phi_step_rad * 180.0 / 3.14159265358979, 2)
         << " deg/step + " << fixed(m.phi_per_m * 180.0 / 3.14159265358979, 2) << " deg/m (learned from "
-        << m.increments_learned << " matches, " << m.increments_downweighted << " glitches)\n";
+        << r.odometry.increments_learned << " matches, " << r.odometry.increments_downweighted << " glitches)\n";
   }
   out << '\n';
-  if (!server_.have_status) {
+  if (!server_.has_value()) {
     out << "SERVER  (no status heard yet)\n";
   } else {
-    out << "SERVER  joined " << server_.robots_joined << "  segments " << server_.segments << "  submaps "
-        << server_.submaps << "  graph edges " << server_.graph_edges << "  fusions " << server_.fusions << '\n'
-        << "        fusion last " << fixed(server_.last_fusion_ms, 2) << " ms  mean " << fixed(server_.mean_fusion_ms, 2)
-        << " ms  queue " << server_.queue_length << "  PSD " << (server_.covariance_ok ? "ok" : "FAILED")
-        << " (min pivot " << server_.min_eigenvalue << ")\n"
+    out << "SERVER  joined " << server_->robots_joined << "  segments " << server_->segments << "  submaps "
+        << server_->submaps << "  graph edges " << server_->graph_edges << "  fusions " << server_->fusions << '\n'
+        << "        fusion last " << fixed(server_->last_fusion_ms, 2) << " ms  mean " << fixed(server_->mean_fusion_ms, 2)
+        << " ms  queue " << server_->queue_length << "  PSD " << (server_->covariance_ok ? "ok" : "FAILED")
+        << " (min pivot " << server_->min_eigenvalue << ")\n"
         << "        rejects:";
-    if (server_.rejects.empty()) out << " none";
-    for (const auto& [name, count] : server_.rejects) out << ' ' << name << '=' << count;
+    if (server_->rejects.empty()) out << " none";
+    for (const auto& [name, count] : server_->rejects) out << ' ' << name << '=' << count;
     out << '\n';
   }
   if (global_map_) {

@@ -31,12 +31,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "lmf/agent_status_t.hpp"
 #include "lmf/geometry/pose2.hpp"
-#include "lmf/global_map_t.hpp"
-#include "lmf/local_map_ack_t.hpp"
-#include "lmf/scan_ack_t.hpp"
-#include "lmf/server_status_t.hpp"
+#include "runtime/messages.hpp"
 
 namespace lmf::monitor {
 
@@ -62,23 +58,7 @@ struct RobotRow {
   std::int64_t scan_acks = 0;        // scan_ack_t seen
   std::int64_t last_scan_seq = -1;   // from scan_ack_t
   std::int64_t local_map_acks = 0;   // local_map_ack_t seen for this robot
-  lmf::odometry_model_t odometry_model{};  // from the last status: the agent's learned odometry model
-};
-
-struct ServerRow {
-  bool have_status = false;
-  std::int64_t utime = 0;
-  int robots_joined = 0;
-  int segments = 0;
-  int submaps = 0;
-  int graph_edges = 0;
-  std::int64_t fusions = 0;
-  double last_fusion_ms = 0.0;
-  double mean_fusion_ms = 0.0;
-  int queue_length = 0;
-  bool covariance_ok = true;
-  double min_eigenvalue = 0.0;
-  std::vector<std::pair<std::string, std::int64_t>> rejects;
+  runtime::OdometryModelReport odometry;  // from the last status: the agent's learned odometry model
 };
 
 // One point of the timing plot.
@@ -91,17 +71,20 @@ struct TimingSample {
 class MonitorState {
  public:
   // receive_utime: when the message arrived (us); used for the scan-ack gaps.
-  void on_agent_status(const lmf::agent_status_t& msg, std::int64_t receive_utime);
-  void on_server_status(const lmf::server_status_t& msg, std::int64_t receive_utime);
-  void on_global_map(const lmf::global_map_t& msg, std::int64_t receive_utime);
-  void on_scan_ack(const lmf::scan_ack_t& msg, std::int64_t receive_utime);
-  void on_local_map_ack(const lmf::local_map_ack_t& msg, std::int64_t receive_utime);
+  // The values as runtime/convert decoded them; extreme ones (times near the
+  // int64 limits, huge counts) are survived, not trusted.
+  void on_agent_status(const runtime::AgentStatus& status, std::int64_t receive_utime);
+  void on_server_status(const runtime::ServerStatus& status, std::int64_t receive_utime);
+  void on_global_map(const runtime::GlobalMapSummary& map, std::int64_t receive_utime);
+  void on_scan_ack(const runtime::ScanAck& ack, std::int64_t receive_utime);
+  void on_local_map_ack(const runtime::LocalMapAck& ack, std::int64_t receive_utime);
   // A message on `channel` that did not decode (named by reason).
   void on_rejected(const std::string& reason);
   void count_message(const std::string& channel);
 
   const std::map<int, RobotRow>& robots() const { return robots_; }
-  const ServerRow& server() const { return server_; }
+  // The last server status heard, if any.
+  const std::optional<runtime::ServerStatus>& server() const { return server_; }
   bool have_global_map() const { return global_map_.has_value(); }
   // Bumped by every global_map_t (lets the node write the SVG only when it changed).
   std::int64_t global_map_version() const { return global_map_version_; }
@@ -132,19 +115,11 @@ class MonitorState {
     double p99_ms = 0.0;
     int window_scans = 0;
   };
-  struct GlobalMapSummary {
-    std::int64_t utime = 0;
-    std::int64_t fusion_count = 0;
-    int submaps = 0;
-    int graph_edges = 0;
-    std::vector<std::array<double, 4>> endpoints;
-  };
-
   RobotRow& robot(int robot_id);
 
   std::map<int, RobotRow> robots_;
-  ServerRow server_;
-  std::optional<GlobalMapSummary> global_map_;
+  std::optional<runtime::ServerStatus> server_;
+  std::optional<runtime::GlobalMapSummary> global_map_;
   std::int64_t global_map_version_ = 0;
   std::map<int, std::vector<StatusWindow>> windows_;            // per robot, from agent_status_t
   struct AckReceipt {

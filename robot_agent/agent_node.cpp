@@ -499,29 +499,28 @@ runtime::RejectCounter AgentNode::all_rejects() const {
 
 void AgentNode::publish_status() {
   const mission::TimingStats timing = mission::timing_stats(window_scan_times_ms_);
-  lmf::agent_status_t msg{};
-  msg.utime = now_utime();
-  msg.robot_id = options_.robot_id;
-  msg.joined = frame_.has_value();
-  msg.scans = counters_.scans_processed;
-  msg.local_map_segments = static_cast<std::int32_t>(local_map_.num_segments());
-  msg.maps_shipped = counters_.maps_shipped;
-  msg.maps_acknowledged = counters_.maps_acknowledged;
-  msg.scan_time_p50_ms = static_cast<float>(timing.p50_ms);
-  msg.scan_time_p99_ms = static_cast<float>(timing.p99_ms);
-  msg.scan_time_max_ms = static_cast<float>(timing.max_ms);
-  msg.window_scans = static_cast<std::int32_t>(timing.count);
-  msg.covariance_ok = window_covariance_ok_;
-  const std::optional<Pose2> pose = global_pose();
-  msg.global_pose = rt::to_message(pose.value_or(Pose2()));
-  msg.odometry_model = rt::to_message(local_map_.odometry_model(), local_map_.odometry_learning_stats());
-  msg.mission_done = mission_done();
-  for (const auto& [reason, count] : all_rejects().nonzero()) {
-    msg.reject_reasons.push_back(reason);
-    msg.reject_counts.push_back(count);
+  rt::AgentStatus status;
+  status.utime = now_utime();
+  status.robot_id = options_.robot_id;
+  status.joined = frame_.has_value();
+  status.scans = counters_.scans_processed;
+  status.local_map_segments = static_cast<int>(local_map_.num_segments());
+  status.maps_shipped = counters_.maps_shipped;
+  status.maps_acknowledged = counters_.maps_acknowledged;
+  status.scan_time_p50_ms = timing.p50_ms;
+  status.scan_time_p99_ms = timing.p99_ms;
+  status.scan_time_max_ms = timing.max_ms;
+  status.window_scans = static_cast<int>(timing.count);
+  status.covariance_ok = window_covariance_ok_;
+  status.x_WR = global_pose().value_or(Pose2());
+  status.odometry = rt::odometry_model_report(local_map_.odometry_model(), local_map_.odometry_learning_stats());
+  status.mission_done = mission_done();
+  status.rejects = all_rejects().nonzero();
+  if (auto msg = rt::to_message(status)) {
+    bus_.publish(options_.channels.agent_status(), msg.value());
+  } else {
+    std::cerr << "lmf-agent " << options_.robot_id << ": status not published: " << msg.rejection().describe() << '\n';
   }
-  msg.num_reject_reasons = static_cast<std::int32_t>(msg.reject_reasons.size());
-  bus_.publish(options_.channels.agent_status(), msg);
   window_scan_times_ms_.clear();
   window_covariance_ok_ = true;
 }

@@ -1,11 +1,14 @@
 #include "runtime/convert.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cassert>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <set>
 #include <string>
+#include <utility>
 
 #include <Eigen/Cholesky>
 
@@ -360,7 +363,43 @@ lmf::pose2_t to_message(const Pose2& pose) {
   return msg;
 }
 
-lmf::odometry_model_t to_message(const OdometryErrorModel& m, const OdometryLearningStats& stats) {
+OdometryModelReport odometry_model_report(const OdometryErrorModel& model, const OdometryLearningStats& stats) {
+  return OdometryModelReport{model, static_cast<std::int64_t>(stats.increments),
+                             static_cast<std::int64_t>(stats.downweighted)};
+}
+
+Checked<OdometryModelReport> from_message(const lmf::odometry_model_t& msg, const DecodeLimits&) {
+  const std::pair<const char*, float> values[] = {
+      {"translation_scale", msg.translation_scale}, {"rotation_scale", msg.rotation_scale},
+      {"heading_bias_rad_per_m", msg.heading_bias_rad_per_m}, {"x_step_m", msg.x_step_m},
+      {"x_per_m", msg.x_per_m}, {"y_step_m", msg.y_step_m}, {"y_per_m", msg.y_per_m},
+      {"phi_step_rad", msg.phi_step_rad}, {"phi_per_m", msg.phi_per_m}, {"phi_per_rad", msg.phi_per_rad},
+      {"phi_turn_distance", msg.phi_turn_distance}};
+  for (const auto& [name, value] : values) {
+    if (auto r = check_finite(value, std::string("odometry_model_t.") + name)) return *r;
+  }
+  if (auto r = check_nonnegative(msg.increments_learned, "odometry_model_t.increments_learned")) return *r;
+  if (auto r = check_nonnegative(msg.increments_downweighted, "odometry_model_t.increments_downweighted")) return *r;
+  OdometryModelReport report;
+  OdometryErrorModel& m = report.model;
+  m.translation_scale = msg.translation_scale;
+  m.rotation_scale = msg.rotation_scale;
+  m.heading_bias_rad_per_m = msg.heading_bias_rad_per_m;
+  m.x_step_m = msg.x_step_m;
+  m.x_per_m = msg.x_per_m;
+  m.y_step_m = msg.y_step_m;
+  m.y_per_m = msg.y_per_m;
+  m.phi_step_rad = msg.phi_step_rad;
+  m.phi_per_m = msg.phi_per_m;
+  m.phi_per_rad = msg.phi_per_rad;
+  m.phi_turn_distance = msg.phi_turn_distance;
+  report.increments_learned = msg.increments_learned;
+  report.increments_downweighted = msg.increments_downweighted;
+  return report;
+}
+
+lmf::odometry_model_t to_message(const OdometryModelReport& report) {
+  const OdometryErrorModel& m = report.model;
   lmf::odometry_model_t msg;
   msg.translation_scale = static_cast<float>(m.translation_scale);
   msg.rotation_scale = static_cast<float>(m.rotation_scale);
@@ -373,8 +412,8 @@ lmf::odometry_model_t to_message(const OdometryErrorModel& m, const OdometryLear
   msg.phi_per_m = static_cast<float>(m.phi_per_m);
   msg.phi_per_rad = static_cast<float>(m.phi_per_rad);
   msg.phi_turn_distance = static_cast<float>(m.phi_turn_distance);
-  msg.increments_learned = static_cast<std::int64_t>(stats.increments);
-  msg.increments_downweighted = static_cast<std::int64_t>(stats.downweighted);
+  msg.increments_learned = report.increments_learned;
+  msg.increments_downweighted = report.increments_downweighted;
   return msg;
 }
 
@@ -779,6 +818,212 @@ lmf::sighting_ack_t to_message(const SightingAck& ack) {
   msg.observer_id = ack.observer_id;
   msg.observed_id = ack.observed_id;
   msg.status = static_cast<std::int8_t>(ack.status);
+  return msg;
+}
+
+// ---- status and map summary --------------------------------------------------------------
+
+namespace {
+
+// The (reason, count) pairs of a status; the strings were checked by precheck.
+Checked<RejectCounts> reject_counts_from(const std::vector<std::string>& reasons,
+                                         const std::vector<std::int64_t>& counts, std::string_view what) {
+  if (reasons.size() != counts.size()) {
+    return reject(RejectReason::kWrongSize, std::string(what) + ": " + to_string(reasons.size()) + " reasons but " +
+                                                to_string(counts.size()) + " counts");
+  }
+  RejectCounts out;
+  out.reserve(reasons.size());
+  for (std::size_t i = 0; i < reasons.size(); ++i) {
+    if (auto r = check_nonnegative(counts[i], std::string(what) + ".reject_counts[" + to_string(i) + "]")) return *r;
+    out.emplace_back(reasons[i], counts[i]);
+  }
+  return out;
+}
+
+template <class Msg>
+void put_reject_counts(const RejectCounts& rejects, Msg& msg) {
+  for (const auto& [reason, count] : rejects) {
+    msg.reject_reasons.push_back(reason);
+    msg.reject_counts.push_back(count);
+  }
+  msg.num_reject_reasons = static_cast<std::int32_t>(msg.reject_reasons.size());
+}
+
+// v as a float; beyond float's range +-infinity (which from_message refuses),
+// not the undefined behaviour of a plain cast.
+float to_float(double v) {
+  constexpr double kMax = std::numeric_limits<float>::max();
+  if (v > kMax) return std::numeric_limits<float>::infinity();
+  if (v < -kMax) return -std::numeric_limits<float>::infinity();
+  return static_cast<float>(v);
+}
+
+// A duration or a time statistic: finite and >= 0.
+std::optional<Rejection> check_duration(double ms, std::string_view what) {
+  if (auto r = check_finite(ms, what)) return r;
+  if (ms < 0.0) return reject(RejectReason::kOutOfRange, std::string(what) + " = " + to_string(ms) + " < 0");
+  return std::nullopt;
+}
+
+}  // namespace
+
+Checked<AgentStatus> from_message(const lmf::agent_status_t& msg, const DecodeLimits& limits) {
+  const std::pair<const char*, std::int64_t> counts[] = {
+      {"agent_status_t.utime", msg.utime}, {"agent_status_t.robot_id", msg.robot_id},
+      {"agent_status_t.scans", msg.scans}, {"agent_status_t.local_map_segments", msg.local_map_segments},
+      {"agent_status_t.maps_shipped", msg.maps_shipped}, {"agent_status_t.maps_acknowledged", msg.maps_acknowledged},
+      {"agent_status_t.window_scans", msg.window_scans}};
+  for (const auto& [what, value] : counts) {
+    if (auto r = check_nonnegative(value, what)) return *r;
+  }
+  if (auto r = check_duration(msg.scan_time_p50_ms, "agent_status_t.scan_time_p50_ms")) return *r;
+  if (auto r = check_duration(msg.scan_time_p99_ms, "agent_status_t.scan_time_p99_ms")) return *r;
+  if (auto r = check_duration(msg.scan_time_max_ms, "agent_status_t.scan_time_max_ms")) return *r;
+  auto x_WR = pose_from(msg.global_pose, "agent_status_t.global_pose", limits);
+  if (!x_WR) return x_WR.rejection();
+  auto odometry = from_message(msg.odometry_model, limits);
+  if (!odometry) return odometry.rejection();
+  auto rejects = reject_counts_from(msg.reject_reasons, msg.reject_counts, "agent_status_t");
+  if (!rejects) return rejects.rejection();
+  AgentStatus s;
+  s.utime = msg.utime;
+  s.robot_id = msg.robot_id;
+  s.joined = msg.joined;
+  s.scans = msg.scans;
+  s.local_map_segments = msg.local_map_segments;
+  s.maps_shipped = msg.maps_shipped;
+  s.maps_acknowledged = msg.maps_acknowledged;
+  s.scan_time_p50_ms = msg.scan_time_p50_ms;
+  s.scan_time_p99_ms = msg.scan_time_p99_ms;
+  s.scan_time_max_ms = msg.scan_time_max_ms;
+  s.window_scans = msg.window_scans;
+  s.covariance_ok = msg.covariance_ok;
+  s.x_WR = x_WR.value();
+  s.odometry = odometry.value();
+  s.mission_done = msg.mission_done;
+  s.rejects = std::move(rejects).value();
+  return s;
+}
+
+Checked<lmf::agent_status_t> to_message(const AgentStatus& s) {
+  lmf::agent_status_t msg;
+  msg.utime = s.utime;
+  msg.robot_id = s.robot_id;
+  msg.joined = s.joined;
+  msg.scans = s.scans;
+  msg.local_map_segments = s.local_map_segments;
+  msg.maps_shipped = s.maps_shipped;
+  msg.maps_acknowledged = s.maps_acknowledged;
+  msg.scan_time_p50_ms = to_float(s.scan_time_p50_ms);
+  msg.scan_time_p99_ms = to_float(s.scan_time_p99_ms);
+  msg.scan_time_max_ms = to_float(s.scan_time_max_ms);
+  msg.window_scans = s.window_scans;
+  msg.covariance_ok = s.covariance_ok;
+  msg.global_pose = to_message(s.x_WR);
+  msg.odometry_model = to_message(s.odometry);
+  msg.mission_done = s.mission_done;
+  put_reject_counts(s.rejects, msg);
+  if (auto checked = from_message(msg, DecodeLimits{}); !checked) return checked.rejection();
+  return msg;
+}
+
+Checked<ServerStatus> from_message(const lmf::server_status_t& msg, const DecodeLimits&) {
+  const std::pair<const char*, std::int64_t> counts[] = {
+      {"server_status_t.utime", msg.utime}, {"server_status_t.num_robots_joined", msg.num_robots_joined},
+      {"server_status_t.num_segments", msg.num_segments}, {"server_status_t.num_submaps", msg.num_submaps},
+      {"server_status_t.num_graph_edges", msg.num_graph_edges}, {"server_status_t.fusions", msg.fusions},
+      {"server_status_t.queue_length", msg.queue_length}};
+  for (const auto& [what, value] : counts) {
+    if (auto r = check_nonnegative(value, what)) return *r;
+  }
+  if (auto r = check_duration(msg.last_fusion_ms, "server_status_t.last_fusion_ms")) return *r;
+  if (auto r = check_duration(msg.mean_fusion_ms, "server_status_t.mean_fusion_ms")) return *r;
+  if (auto r = check_finite(msg.min_eigenvalue, "server_status_t.min_eigenvalue")) return *r;
+  auto rejects = reject_counts_from(msg.reject_reasons, msg.reject_counts, "server_status_t");
+  if (!rejects) return rejects.rejection();
+  ServerStatus s;
+  s.utime = msg.utime;
+  s.robots_joined = msg.num_robots_joined;
+  s.segments = msg.num_segments;
+  s.submaps = msg.num_submaps;
+  s.graph_edges = msg.num_graph_edges;
+  s.fusions = msg.fusions;
+  s.last_fusion_ms = msg.last_fusion_ms;
+  s.mean_fusion_ms = msg.mean_fusion_ms;
+  s.queue_length = msg.queue_length;
+  s.covariance_ok = msg.covariance_ok;
+  s.min_eigenvalue = msg.min_eigenvalue;
+  s.rejects = std::move(rejects).value();
+  return s;
+}
+
+Checked<lmf::server_status_t> to_message(const ServerStatus& s) {
+  lmf::server_status_t msg;
+  msg.utime = s.utime;
+  msg.num_robots_joined = s.robots_joined;
+  msg.num_segments = s.segments;
+  msg.num_submaps = s.submaps;
+  msg.num_graph_edges = s.graph_edges;
+  msg.fusions = s.fusions;
+  msg.last_fusion_ms = to_float(s.last_fusion_ms);
+  msg.mean_fusion_ms = to_float(s.mean_fusion_ms);
+  msg.queue_length = s.queue_length;
+  msg.covariance_ok = s.covariance_ok;
+  msg.min_eigenvalue = to_float(s.min_eigenvalue);
+  put_reject_counts(s.rejects, msg);
+  if (auto checked = from_message(msg, DecodeLimits{}); !checked) return checked.rejection();
+  return msg;
+}
+
+Checked<GlobalMapSummary> from_message(const lmf::global_map_t& msg, const DecodeLimits& limits) {
+  if (msg.num_segments < 0 || msg.endpoints.size() != static_cast<std::size_t>(msg.num_segments)) {
+    return reject(RejectReason::kWrongSize, "global_map_t: num_segments " + to_string(msg.num_segments) + " but " +
+                                                to_string(msg.endpoints.size()) + " end point rows");
+  }
+  if (auto r = check_nonnegative(msg.utime, "global_map_t.utime")) return *r;
+  if (auto r = check_nonnegative(msg.fusion_count, "global_map_t.fusion_count")) return *r;
+  if (auto r = check_nonnegative(msg.num_submaps, "global_map_t.num_submaps")) return *r;
+  if (auto r = check_nonnegative(msg.num_graph_edges, "global_map_t.num_graph_edges")) return *r;
+  GlobalMapSummary map;
+  map.utime = msg.utime;
+  map.fusion_count = msg.fusion_count;
+  map.submaps = msg.num_submaps;
+  map.graph_edges = msg.num_graph_edges;
+  map.endpoints.reserve(msg.endpoints.size());
+  for (std::size_t i = 0; i < msg.endpoints.size(); ++i) {
+    if (msg.endpoints[i].size() != 4) {
+      return reject(RejectReason::kWrongSize, "global_map_t.endpoints[" + to_string(i) + "]: " +
+                                                  to_string(msg.endpoints[i].size()) + " values, expected 4");
+    }
+    std::array<double, 4> e{};
+    for (std::size_t k = 0; k < 4; ++k) {
+      const std::string what = "global_map_t.endpoints[" + to_string(i) + "][" + to_string(k) + "]";
+      if (auto r = check_finite(msg.endpoints[i][k], what)) return *r;
+      if (std::abs(msg.endpoints[i][k]) > limits.max_coordinate_m) {
+        return reject(RejectReason::kOutOfRange, what + " = " + to_string(msg.endpoints[i][k]) + " m beyond " +
+                                                     to_string(limits.max_coordinate_m) + " m");
+      }
+      e[k] = msg.endpoints[i][k];
+    }
+    map.endpoints.push_back(e);
+  }
+  return map;
+}
+
+Checked<lmf::global_map_t> to_message(const GlobalMapSummary& map) {
+  lmf::global_map_t msg;
+  msg.utime = map.utime;
+  msg.fusion_count = map.fusion_count;
+  msg.num_submaps = map.submaps;
+  msg.num_graph_edges = map.graph_edges;
+  msg.num_segments = static_cast<std::int32_t>(map.endpoints.size());
+  msg.endpoints.reserve(map.endpoints.size());
+  for (const auto& e : map.endpoints) {
+    msg.endpoints.push_back({to_float(e[0]), to_float(e[1]), to_float(e[2]),
+                             to_float(e[3])});
+  }
+  if (auto checked = from_message(msg, DecodeLimits{}); !checked) return checked.rejection();
   return msg;
 }
 

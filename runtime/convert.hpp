@@ -104,8 +104,11 @@ std::optional<Rejection> check_covariance(const Eigen::MatrixXd& P, std::string_
 Checked<Pose2> from_message(const lmf::pose2_t& msg, const DecodeLimits& limits = {});
 lmf::pose2_t to_message(const Pose2& pose);
 
-// An agent's odometry model for its status (values become float).
-lmf::odometry_model_t to_message(const OdometryErrorModel& model, const OdometryLearningStats& stats);
+// An agent's odometry model for its status (values become float). Every
+// value must be finite and the counts >= 0.
+Checked<OdometryModelReport> from_message(const lmf::odometry_model_t& msg, const DecodeLimits& limits = {});
+lmf::odometry_model_t to_message(const OdometryModelReport& report);
+OdometryModelReport odometry_model_report(const OdometryErrorModel& model, const OdometryLearningStats& stats);
 
 Checked<RobotScan> from_message(const lmf::laser_scan_t& msg, const DecodeLimits& limits = {});
 lmf::laser_scan_t to_message(const RobotScan& scan);  // ranges and angles become float
@@ -135,6 +138,18 @@ lmf::local_map_ack_t to_message(const LocalMapAck& ack);
 Checked<SightingAck> from_message(const lmf::sighting_ack_t& msg, const DecodeLimits& limits = {});
 lmf::sighting_ack_t to_message(const SightingAck& ack);
 
+// Status and map summary: times and counts >= 0, numbers finite (times in ms
+// become float), reject counts >= 0; the agent's pose within the coordinate
+// bound, the map's end points too.
+Checked<AgentStatus> from_message(const lmf::agent_status_t& msg, const DecodeLimits& limits = {});
+Checked<lmf::agent_status_t> to_message(const AgentStatus& status);
+
+Checked<ServerStatus> from_message(const lmf::server_status_t& msg, const DecodeLimits& limits = {});
+Checked<lmf::server_status_t> to_message(const ServerStatus& status);
+
+Checked<GlobalMapSummary> from_message(const lmf::global_map_t& msg, const DecodeLimits& limits = {});
+Checked<lmf::global_map_t> to_message(const GlobalMapSummary& map);  // end points become float
+
 // ---- 3. bytes -> core values -------------------------------------------------
 template <class Core>
 struct MessageOf;  // the LCM type that carries Core
@@ -146,6 +161,9 @@ template <> struct MessageOf<ScanAck> { using type = lmf::scan_ack_t; };
 template <> struct MessageOf<LocalMapAck> { using type = lmf::local_map_ack_t; };
 template <> struct MessageOf<SightingAck> { using type = lmf::sighting_ack_t; };
 template <> struct MessageOf<MissionEnd> { using type = lmf::mission_end_t; };
+template <> struct MessageOf<AgentStatus> { using type = lmf::agent_status_t; };
+template <> struct MessageOf<ServerStatus> { using type = lmf::server_status_t; };
+template <> struct MessageOf<GlobalMapSummary> { using type = lmf::global_map_t; };
 
 template <class Core>
 Checked<Core> decode(const void* data, std::size_t size, const DecodeLimits& limits = {}) {

@@ -3,12 +3,16 @@
 // docs/design.md §3: x_AB is frame B seen from frame A, metres and radians.
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "lmf/geometry/pose2.hpp"
+#include "lmf/local_map/odometry_model.hpp"
 #include "lmf/scan/laser_scan.hpp"
 
 namespace lmf::runtime {
@@ -86,6 +90,64 @@ struct Sighting {
   std::int64_t observed_seq = 0;  // B's local map in progress at utime
   Pose2 x_LB;                     // B's pose in that local map
   Eigen::Matrix3d cov_LB = Eigen::Matrix3d::Zero();
+};
+
+// Incoming messages refused, by reason name (runtime/rejection.hpp), as the
+// status messages carry them: each count > 0 where a process sends them.
+using RejectCounts = std::vector<std::pair<std::string, std::int64_t>>;
+
+// The odometry error model an agent predicts with, and how much it has learned
+// from (lmf/local_map/odometry_model.hpp; the prior until the first increment).
+struct OdometryModelReport {
+  OdometryErrorModel model;
+  std::int64_t increments_learned = 0;
+  std::int64_t increments_downweighted = 0;  // of those, taken as glitches
+};
+
+// One agent's periodic status (agent -> monitors and the player). Scan times
+// are order statistics over the window since the previous status.
+struct AgentStatus {
+  std::int64_t utime = 0;  // wall clock of the agent
+  int robot_id = 0;
+  bool joined = false;  // the agent has received its corrected frame
+  std::int64_t scans = 0;  // scans processed
+  int local_map_segments = 0;
+  std::int64_t maps_shipped = 0;
+  std::int64_t maps_acknowledged = 0;
+  double scan_time_p50_ms = 0.0;
+  double scan_time_p99_ms = 0.0;
+  double scan_time_max_ms = 0.0;
+  int window_scans = 0;
+  bool covariance_ok = true;  // symmetric and PSD within tolerance over the window
+  Pose2 x_WR;                 // best global estimate of the robot (identity while not joined)
+  OdometryModelReport odometry;
+  bool mission_done = false;  // mission end received and every local map acknowledged
+  RejectCounts rejects;
+};
+
+// The server's periodic status (server -> monitors).
+struct ServerStatus {
+  std::int64_t utime = 0;  // wall clock of the server
+  int robots_joined = 0;
+  int segments = 0;
+  int submaps = 0;
+  int graph_edges = 0;
+  std::int64_t fusions = 0;
+  double last_fusion_ms = 0.0;
+  double mean_fusion_ms = 0.0;
+  int queue_length = 0;  // local maps received and not yet fused
+  bool covariance_ok = true;  // the last fusion's health check of P
+  double min_eigenvalue = 0.0;  // smallest eigenvalue (or LDLT pivot) of P; 0 before the first fusion
+  RejectCounts rejects;
+};
+
+// What monitors draw of the global map (server -> anyone): its segments' end points.
+struct GlobalMapSummary {
+  std::int64_t utime = 0;  // newest local map fused (data time)
+  std::int64_t fusion_count = 0;
+  int submaps = 0;
+  int graph_edges = 0;
+  std::vector<std::array<double, 4>> endpoints;  // x1 y1 x2 y2 in W, m
 };
 
 }  // namespace lmf::runtime

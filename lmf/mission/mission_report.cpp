@@ -50,10 +50,6 @@ json to_json(const eval::RelativeError& e) {
           {"rotation_rmse_deg", e.rotation_rmse_deg}};
 }
 
-json to_json(const TimingStats& t) {
-  return {{"count", t.count}, {"p50_ms", t.p50_ms}, {"p99_ms", t.p99_ms}, {"max_ms", t.max_ms}, {"mean_ms", t.mean_ms}};
-}
-
 std::vector<StampedPose> odometry_of(const RobotLog& log) {
   std::vector<StampedPose> poses;
   poses.reserve(log.scans.size());
@@ -92,6 +88,23 @@ json consistency_json(const std::vector<LocalMapConsistency>& maps) {
     list.push_back({{"seq", c.seq}, {"error_m", c.error_m}, {"error_rad", c.error_rad}, {"nees", c.nees}});
   }
   return list;
+}
+
+json timing_json(const TimingStats& t) {
+  return {{"count", t.count}, {"p50_ms", t.p50_ms}, {"p99_ms", t.p99_ms}, {"max_ms", t.max_ms}, {"mean_ms", t.mean_ms}};
+}
+
+json map_counts_json(const fusion::MapCounts& c) {
+  return {{"segments", c.segments},
+          {"submaps", c.submaps},
+          {"robots_joined", c.robots_joined},
+          {"graph_edges", c.graph_edges},
+          {"queued_local_maps", c.queued_local_maps},
+          {"state_dimension", c.state_dimension}};
+}
+
+json sighting_json(std::int64_t utime, int observer, int observed, const char* status) {
+  return {{"utime", utime}, {"observer", observer}, {"observed", observed}, {"status", status}};
 }
 
 json fusion_report_json(const fusion::FusionReport& r) {
@@ -217,13 +230,7 @@ void write_mission_outputs(const std::filesystem::path& out, const OfflineMissio
 
   json report;
   report["inputs"] = mission.inputs().description;
-  const fusion::MapCounts counts = mission.global_map().counts();
-  report["map"] = {{"segments", counts.segments},
-                   {"submaps", counts.submaps},
-                   {"robots_joined", counts.robots_joined},
-                   {"graph_edges", counts.graph_edges},
-                   {"queued_local_maps", counts.queued_local_maps},
-                   {"state_dimension", counts.state_dimension}};
+  report["map"] = map_counts_json(mission.global_map().counts());
   json robots = json::array();
   for (const RobotResult& r : result.robots) {
     robots.push_back({{"robot_id", r.robot_id},
@@ -233,24 +240,21 @@ void write_mission_outputs(const std::filesystem::path& out, const OfflineMissio
                       {"local_maps_shipped", r.local_maps_shipped},
                       {"local_maps_fused", r.local_maps_fused},
                       {"segments_seen_through", r.segments_seen_through},
-                      {"scan_timing", to_json(r.scan_timing)},
+                      {"scan_timing", timing_json(r.scan_timing)},
                       {"covariance_always_ok", r.covariance_always_ok},
                       {"first_covariance_problem", r.first_covariance_problem},
                       {"odometry_model", odometry_model_json(r.odometry_model, r.odometry_learning)},
                       {"local_map_consistency", consistency_json(r.local_map_consistency)}});
   }
   report["robots"] = robots;
-  report["fusion_timing"] = to_json(result.fusion_timing);
+  report["fusion_timing"] = timing_json(result.fusion_timing);
   report["global_covariance_always_ok"] = result.global_covariance_always_ok;
   json fusions = json::array();
   for (const auto& f : result.fusions) fusions.push_back(fusion_report_json(f));
   report["fusions"] = fusions;
   json sightings = json::array();
   for (const auto& s : result.sightings) {
-    sightings.push_back({{"utime", s.input.utime},
-                         {"observer", s.input.observer},
-                         {"observed", s.input.observed},
-                         {"status", sighting_status_name(s.status)}});
+    sightings.push_back(sighting_json(s.input.utime, s.input.observer, s.input.observed, sighting_status_name(s.status)));
   }
   report["sightings"] = sightings;
   if (score) {

@@ -39,6 +39,11 @@ nlohmann::json odometry_model_json(const OdometryErrorModel& model, const Odomet
 // One fusion's report as a JSON object (report.json of lmf-offline and lmf-server).
 nlohmann::json fusion_report_json(const fusion::FusionReport& report);
 
+// The pieces of report.json that lmf-offline and lmf-server share.
+nlohmann::json timing_json(const TimingStats& timing);
+nlohmann::json map_counts_json(const fusion::MapCounts& counts);
+nlohmann::json sighting_json(std::int64_t utime, int observer, int observed, const char* status);
+
 // "joined", "joined_approximately", "pending", "ignored".
 const char* sighting_status_name(fusion::SightingStatus status);
 

@@ -8,7 +8,7 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   return lmf::fuzz::fuzz_monitor_message<lmf::agent_status_t>(
-      data, size, [](lmf::monitor::MonitorState& state, const lmf::agent_status_t& m, std::int64_t now) { state.on_agent_status(m, now); });
+      data, size, [](lmf::monitor::MonitorState& state, const lmf::runtime::AgentStatus& m, std::int64_t now) { state.on_agent_status(m, now); });
 }
 
 std::vector<lmf::fuzz::Bytes> LmfFuzzSeeds() {

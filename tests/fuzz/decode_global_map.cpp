@@ -8,7 +8,7 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   return lmf::fuzz::fuzz_monitor_message<lmf::global_map_t>(
-      data, size, [](lmf::monitor::MonitorState& state, const lmf::global_map_t& m, std::int64_t now) { state.on_global_map(m, now); });
+      data, size, [](lmf::monitor::MonitorState& state, const lmf::runtime::GlobalMapSummary& m, std::int64_t now) { state.on_global_map(m, now); });
 }
 
 std::vector<lmf::fuzz::Bytes> LmfFuzzSeeds() {

@@ -130,12 +130,16 @@ TEST(FuzzRegression, HugeFlaserValuesAreWrittenWhole) {
 
 TEST(FuzzRegression, MonitorSurvivesHostileStatusValues) {
   lmf::monitor::MonitorState state;
-  lmf::agent_status_t a = lmf::fuzz::corpus().agent_statuses.front();
+  // Values runtime::from_message accepts at their extremes, and some it would
+  // refuse (MonitorState does not rely on its caller having checked).
+  rt::AgentStatus a = rt::from_message(lmf::fuzz::corpus().agent_statuses.front()).value();
   a.utime = std::numeric_limits<std::int64_t>::max();
-  a.reject_counts = {std::numeric_limits<std::int64_t>::max(), std::numeric_limits<std::int64_t>::max(), 5};
+  for (auto& [reason, count] : a.rejects) count = std::numeric_limits<std::int64_t>::max();
+  ASSERT_GE(a.rejects.size(), 2u);
   state.on_agent_status(a, 1);
   a.utime = std::numeric_limits<std::int64_t>::min();  // utime differences overflowed int64
-  a.global_pose.x = std::numeric_limits<double>::quiet_NaN();  // made map.svg throw
+  a.x_WR.x = std::numeric_limits<double>::quiet_NaN();  // made map.svg throw
+  a.scan_time_p99_ms = std::numeric_limits<double>::quiet_NaN();  // null in the JSON line
   state.on_agent_status(a, 2);
   EXPECT_EQ(state.robots().at(a.robot_id).rejects, std::numeric_limits<std::int64_t>::max());
   EXPECT_EQ(state.timing_series().at(a.robot_id).size(), 2u);

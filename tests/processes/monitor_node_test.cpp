@@ -84,6 +84,14 @@ lmf::global_map_t global_map() {
   return m;
 }
 
+// What the monitor's state takes: the message as runtime/convert decodes it.
+template <class Msg>
+auto decoded(const Msg& msg) {
+  auto value = rt::from_message(msg);
+  EXPECT_TRUE(value.ok()) << value.rejection().describe();
+  return value.value();
+}
+
 std::vector<nlohmann::json> parse_lines(const std::string& text) {
   std::vector<nlohmann::json> out;
   std::istringstream in(text);
@@ -110,9 +118,10 @@ TEST(MonitorNode, LiveJsonLinesParseAndCarryTheStatus) {
   std::ostringstream out;
   lmf::monitor::MonitorNode node(bus, loop, channels, options, out);
 
-  lmf::agent_status_t a0 = agent_status(0, 1'000'000, 12.0f);
-  a0.scan_time_p99_ms = std::numeric_limits<float>::quiet_NaN();  // must still give valid JSON
-  bus.publish(channels.agent_status(), a0);
+  lmf::agent_status_t not_finite = agent_status(0, 1'000'000, 12.0f);
+  not_finite.scan_time_p99_ms = std::numeric_limits<float>::quiet_NaN();  // refused and counted
+  bus.publish(channels.agent_status(), not_finite);
+  bus.publish(channels.agent_status(), agent_status(0, 1'000'000, 12.0f));
   bus.publish(channels.agent_status(), agent_status(1, 1'000'000, 20.0f));
   bus.publish(channels.server_status(), server_status(11));
   bus.publish(channels.global_map(), global_map());
@@ -125,7 +134,7 @@ TEST(MonitorNode, LiveJsonLinesParseAndCarryTheStatus) {
   ASSERT_EQ(j["robots"].size(), 2u);
   EXPECT_EQ(j["robots"][0]["robot_id"], 0);
   EXPECT_TRUE(j["robots"][0]["joined"]);
-  EXPECT_TRUE(j["robots"][0]["scan_p99_ms"].is_null());
+  EXPECT_DOUBLE_EQ(j["robots"][0]["scan_p99_ms"].get<double>(), static_cast<double>(0.8f * 12.0f));
   EXPECT_DOUBLE_EQ(j["robots"][1]["scan_max_ms"].get<double>(), 20.0);
   EXPECT_EQ(j["robots"][1]["local_map_segments"], 8);
   EXPECT_EQ(j["robots"][1]["maps_shipped"], 3);
@@ -142,7 +151,8 @@ TEST(MonitorNode, LiveJsonLinesParseAndCarryTheStatus) {
   EXPECT_EQ(j["server"]["rejects"]["stale_sequence"], 3);
   EXPECT_EQ(j["global_map"]["segments"], 3);
   EXPECT_EQ(j["rejected"]["decode_failed"], 1);
-  EXPECT_EQ(j["messages"], 5);
+  EXPECT_EQ(j["rejected"]["non_finite"], 1);
+  EXPECT_EQ(j["messages"], 6);
 }
 
 // Fig. 8's x axis is mission time: a status window is placed at the log time of
@@ -156,9 +166,9 @@ TEST(MonitorState, TimingIsPlacedInMissionTime) {
     ack.robot_id = 0;
     ack.seq = k;
     ack.utime = log_t0 + k * 10'000'000;  // scans 10 s apart in the log ...
-    state.on_scan_ack(ack, wall_t0 + k * 100'000);
+    state.on_scan_ack(decoded(ack), wall_t0 + k * 100'000);
     // ... replayed 0.1 s apart: each status after an ack, with sub-millisecond scans
-    state.on_agent_status(agent_status(0, wall_t0 + k * 100'000 + 50'000, 0.25f), wall_t0 + k * 100'000 + 50'000);
+    state.on_agent_status(decoded(agent_status(0, wall_t0 + k * 100'000 + 50'000, 0.25f)), wall_t0 + k * 100'000 + 50'000);
   }
   EXPECT_TRUE(state.timing_in_mission_time());
   const auto series = state.timing_series();
@@ -177,7 +187,7 @@ TEST(MonitorState, TimingIsPlacedInMissionTime) {
   EXPECT_NE(svg.find("id=\"legend\""), std::string::npos);
 
   // A robot that acknowledged no scan: its status times, and the axis says so.
-  state.on_agent_status(agent_status(1, wall_t0, 0.5f), wall_t0);
+  state.on_agent_status(decoded(agent_status(1, wall_t0, 0.5f)), wall_t0);
   EXPECT_FALSE(state.timing_in_mission_time());
 }
 

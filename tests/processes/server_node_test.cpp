@@ -219,9 +219,8 @@ TEST_F(ServerNodeTest, BadMessagesAreRejectedByReasonAndLeaveTheMapUnchanged) {
   EXPECT_EQ(node.stats().acks_fused + node.stats().acks_queued, acks_before + 1);
 
   // The status reports the reasons.
-  const lmf::server_status_t status = node.make_status();
-  std::map<std::string, std::int64_t> reasons;
-  for (int i = 0; i < status.num_reject_reasons; ++i) reasons[status.reject_reasons[i]] = status.reject_counts[i];
+  const rt::ServerStatus status = node.make_status();
+  std::map<std::string, std::int64_t> reasons(status.rejects.begin(), status.rejects.end());
   EXPECT_EQ(reasons["decode_failed"], 2);
   EXPECT_EQ(reasons["unknown_robot"], 2);
 }

@@ -311,6 +311,132 @@ TEST(Convert, MissionEndRoundTrips) {
   EXPECT_TRUE(rt::to_message(MissionEnd{0, {}}).ok());
 }
 
+TEST(Convert, AgentStatusRoundTripsAndRefusesBadValues) {
+  rt::AgentStatus status;
+  status.utime = 1'700'000'000'000'000;
+  status.robot_id = 3;
+  status.joined = true;
+  status.scans = 412;
+  status.local_map_segments = 17;
+  status.maps_shipped = 9;
+  status.maps_acknowledged = 8;
+  status.scan_time_p50_ms = 0.5;
+  status.scan_time_p99_ms = 1.25;
+  status.scan_time_max_ms = 4.0;
+  status.window_scans = 25;
+  status.x_WR = Pose2(3.0, -1.5, 0.7);
+  status.odometry.model.translation_scale = 1.02;
+  status.odometry.model.phi_per_m = 0.01;
+  status.odometry.increments_learned = 400;
+  status.odometry.increments_downweighted = 3;
+  status.mission_done = true;
+  status.rejects = {{"stale_sequence", 7}, {"non_finite", 1}};
+  const auto msg = rt::to_message(status);
+  ASSERT_TRUE(msg.ok()) << msg.rejection().describe();
+  const auto back = through_bytes<rt::AgentStatus>(msg.value());
+  ASSERT_TRUE(back.ok()) << back.rejection().describe();
+  const rt::AgentStatus& b = back.value();
+  EXPECT_EQ(b.utime, status.utime);
+  EXPECT_EQ(b.robot_id, 3);
+  EXPECT_TRUE(b.joined);
+  EXPECT_EQ(b.scans, 412);
+  EXPECT_EQ(b.maps_acknowledged, 8);
+  EXPECT_DOUBLE_EQ(b.scan_time_p99_ms, 1.25);
+  EXPECT_EQ(b.window_scans, 25);
+  EXPECT_DOUBLE_EQ(b.x_WR.phi, 0.7);
+  EXPECT_FLOAT_EQ(static_cast<float>(b.odometry.model.translation_scale), 1.02f);
+  EXPECT_EQ(b.odometry.increments_downweighted, 3);
+  EXPECT_TRUE(b.mission_done);
+  EXPECT_EQ(b.rejects, status.rejects);
+
+  auto bad = status;
+  bad.scan_time_max_ms = std::nan("");
+  EXPECT_EQ(reason_of(rt::to_message(bad)), RejectReason::kNonFinite);
+  bad = status;
+  bad.scan_time_p50_ms = -1.0;
+  EXPECT_EQ(reason_of(rt::to_message(bad)), RejectReason::kOutOfRange);
+  bad = status;
+  bad.maps_shipped = -1;
+  EXPECT_EQ(reason_of(rt::to_message(bad)), RejectReason::kOutOfRange);
+  bad = status;
+  bad.x_WR = Pose2(2e6, 0.0, 0.0);
+  EXPECT_EQ(reason_of(rt::to_message(bad)), RejectReason::kOutOfRange);
+  bad = status;
+  bad.odometry.model.rotation_scale = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(reason_of(rt::to_message(bad)), RejectReason::kNonFinite);
+  bad = status;
+  bad.rejects = {{"decode_failed", -2}};
+  EXPECT_EQ(reason_of(rt::to_message(bad)), RejectReason::kOutOfRange);
+  // A float time that overflows float is refused, not sent as infinity.
+  bad = status;
+  bad.scan_time_max_ms = 1e300;
+  EXPECT_EQ(reason_of(rt::to_message(bad)), RejectReason::kNonFinite);
+}
+
+TEST(Convert, ServerStatusRoundTripsAndRefusesBadValues) {
+  rt::ServerStatus status;
+  status.utime = 5;
+  status.robots_joined = 2;
+  status.segments = 140;
+  status.submaps = 12;
+  status.graph_edges = 15;
+  status.fusions = 13;
+  status.last_fusion_ms = 21.5;
+  status.mean_fusion_ms = 14.0;
+  status.queue_length = 1;
+  status.covariance_ok = false;
+  status.min_eigenvalue = -1e-6;  // what a failed health check reports
+  status.rejects = {{"covariance_not_psd", 2}};
+  const auto msg = rt::to_message(status);
+  ASSERT_TRUE(msg.ok()) << msg.rejection().describe();
+  const auto back = through_bytes<rt::ServerStatus>(msg.value());
+  ASSERT_TRUE(back.ok()) << back.rejection().describe();
+  EXPECT_EQ(back.value().segments, 140);
+  EXPECT_EQ(back.value().fusions, 13);
+  EXPECT_DOUBLE_EQ(back.value().last_fusion_ms, 21.5);
+  EXPECT_FALSE(back.value().covariance_ok);
+  EXPECT_FLOAT_EQ(static_cast<float>(back.value().min_eigenvalue), -1e-6f);
+  EXPECT_EQ(back.value().rejects, status.rejects);
+
+  auto bad = status;
+  bad.queue_length = -1;
+  EXPECT_EQ(reason_of(rt::to_message(bad)), RejectReason::kOutOfRange);
+  bad = status;
+  bad.mean_fusion_ms = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(reason_of(rt::to_message(bad)), RejectReason::kNonFinite);
+  bad = status;
+  bad.min_eigenvalue = std::nan("");
+  EXPECT_EQ(reason_of(rt::to_message(bad)), RejectReason::kNonFinite);
+}
+
+TEST(Convert, GlobalMapSummaryRoundTripsAndRefusesBadEndPoints) {
+  rt::GlobalMapSummary map;
+  map.utime = 7;
+  map.fusion_count = 4;
+  map.submaps = 3;
+  map.graph_edges = 2;
+  map.endpoints = {{0.0, 0.0, 5.0, 0.0}, {5.0, 0.0, 5.0, 4.25}};
+  const auto msg = rt::to_message(map);
+  ASSERT_TRUE(msg.ok()) << msg.rejection().describe();
+  const auto back = through_bytes<rt::GlobalMapSummary>(msg.value());
+  ASSERT_TRUE(back.ok()) << back.rejection().describe();
+  EXPECT_EQ(back.value().fusion_count, 4);
+  EXPECT_EQ(back.value().endpoints, map.endpoints);  // exact in float
+
+  auto bad = map;
+  bad.endpoints[1][2] = std::nan("");
+  EXPECT_EQ(reason_of(rt::to_message(bad)), RejectReason::kNonFinite);
+  bad = map;
+  bad.endpoints[0][0] = -3e6;
+  EXPECT_EQ(reason_of(rt::to_message(bad)), RejectReason::kOutOfRange);
+  bad = map;
+  bad.submaps = -1;
+  EXPECT_EQ(reason_of(rt::to_message(bad)), RejectReason::kOutOfRange);
+  lmf::global_map_t short_row = msg.value();
+  short_row.endpoints[0].pop_back();  // a hand-built message the encoder would overrun
+  EXPECT_EQ(reason_of(rt::from_message(short_row)), RejectReason::kWrongSize);
+}
+
 TEST(Convert, StatusAndGlobalMapMessagesDecode) {
   lmf::server_status_t status{};
   status.num_reject_reasons = 2;
