@@ -12,7 +12,6 @@
 
 #include <nlohmann/json.hpp>
 
-#include "fusion_server/sighting_conversion.hpp"
 #include "lmf/fusion/global_map_archive.hpp"
 #include "lmf/fusion/map_export.hpp"
 #include "lmf/mission/mission_report.hpp"
@@ -84,7 +83,7 @@ struct ServerNode::Outcome {
   int robot_id = 0;
   std::int64_t seq = 0;
   std::optional<runtime::Rejection> rejection;  // the GlobalMap refused the input
-  std::optional<runtime::Sighting> sighting;    // kSighting: the one applied
+  std::optional<fusion::RobotSighting> sighting;    // kSighting: the one applied
   bool queued_in_map = false;                   // local map held until its robot joins
   std::vector<std::pair<int, std::int64_t>> fused;  // (robot, seq) fused by this task
   MapView view;
@@ -193,12 +192,12 @@ void ServerNode::on_local_map(const void* data, std::size_t size) {
 void ServerNode::on_sighting(const void* data, std::size_t size) {
   ++stats_.sightings_received;
   if (stopped_) return;
-  auto decoded = runtime::decode<runtime::Sighting>(data, size, options_.limits);
+  auto decoded = runtime::decode<fusion::RobotSighting>(data, size, options_.limits);
   if (!decoded) {
     rejects_.record(decoded.rejection(), channels_.sighting());
     return;
   }
-  const runtime::Sighting& s = decoded.value();
+  const fusion::RobotSighting& s = decoded.value();
   const std::string where = "sighting " + std::to_string(s.observer_id) + " -> " + std::to_string(s.observed_id) +
                             " at " + std::to_string(s.utime);
   if (s.observer_id >= options_.max_robots || s.observed_id >= options_.max_robots) {
@@ -265,7 +264,7 @@ void ServerNode::on_outcome(Outcome& outcome) {
       write_pending_ = false;
       return;
     case Outcome::Kind::kSighting: {
-      const runtime::Sighting& s = *outcome.sighting;
+      const fusion::RobotSighting& s = *outcome.sighting;
       // Answered either way: a repeat gets DUPLICATE (resending a rejected one cannot help).
       sightings_waiting_.erase({s.utime, s.observer_id, s.observed_id});
       sightings_answered_.insert({s.utime, s.observer_id, s.observed_id});
@@ -324,14 +323,14 @@ void ServerNode::fuse_task(LocalMapSnapshot snapshot, Clock::time_point arrived)
   post_outcome(std::move(outcome));
 }
 
-void ServerNode::sighting_task(const runtime::Sighting& sighting, Clock::time_point arrived) {
+void ServerNode::sighting_task(const fusion::RobotSighting& sighting, Clock::time_point arrived) {
   const double wait_ms = ms_since(arrived);
   auto outcome = std::make_shared<Outcome>();
   outcome->kind = Outcome::Kind::kSighting;
   outcome->robot_id = sighting.observed_id;
   outcome->sighting = sighting;
   try {
-    const fusion::SightingResult result = map_.add_sighting(to_robot_sighting(sighting));
+    const fusion::SightingResult result = map_.add_sighting(sighting);
     record_fusions(result.fused, wait_ms);
     for (const auto& r : result.fused) outcome->fused.emplace_back(r.robot_id, r.seq);
     sightings_.push_back({sighting, mission::sighting_status_name(result.status)});
@@ -433,12 +432,12 @@ void ServerNode::replay(const JournalRecord& record) {
     // Applied now (its outcome, and the FUSED/QUEUED ack, follow on the loop).
     if (map_.has_fused(robot_id, seq) || map_.is_queued(robot_id, seq)) seqs_[robot_id].applied.insert(seq);
   } else if (record.channel == channels_.sighting()) {
-    auto decoded = runtime::decode<runtime::Sighting>(record.data.data(), size, options_.limits);
+    auto decoded = runtime::decode<fusion::RobotSighting>(record.data.data(), size, options_.limits);
     if (!decoded) {
       recovery_.problems.push_back(at + ": no longer decodes (" + decoded.rejection().describe() + "): skipped");
       return;
     }
-    const runtime::Sighting& s = decoded.value();
+    const fusion::RobotSighting& s = decoded.value();
     sightings_waiting_.insert({s.utime, s.observer_id, s.observed_id});  // its outcome (and ack) follows on the loop
     ++recovery_.replayed_sightings;
     sighting_task(s, Clock::now());
@@ -518,13 +517,9 @@ MapView ServerNode::make_view() const {
   v.latest_utime = latest_utime_;
   v.frames.utime = latest_utime_;
   v.frames.fusion_count = v.fusion_count;
-  for (const fusion::CorrectedFrame& f : map_.corrected_frames()) {
-    runtime::CorrectedFrame c;
-    c.robot_id = f.robot_id;
-    c.last_applied_seq = f.seq - 1;  // L_r is the origin of local map f.seq
-    c.x_WL = f.x_WL;
-    c.covariance = 0.5 * (f.covariance + f.covariance.transpose());
-    v.frames.frames.push_back(c);
+  for (fusion::CorrectedFrame f : map_.corrected_frames()) {
+    f.covariance = 0.5 * (f.covariance + f.covariance.transpose());
+    v.frames.frames.push_back(f);
   }
   for (const fusion::SegmentView& s : map_.segments()) {
     v.endpoints.push_back({static_cast<float>(s.start_W.x()), static_cast<float>(s.start_W.y()),
@@ -699,7 +694,7 @@ void ServerNode::publish_ack(int robot_id, std::int64_t seq, runtime::LocalMapAc
   bus_.publish(channels_.local_map_ack(), runtime::to_message(ack));
 }
 
-void ServerNode::publish_sighting_ack(const runtime::Sighting& s, runtime::SightingAck::Status status) {
+void ServerNode::publish_sighting_ack(const fusion::RobotSighting& s, runtime::SightingAck::Status status) {
   runtime::SightingAck ack;
   ack.utime = s.utime;
   ack.observer_id = s.observer_id;

@@ -199,7 +199,7 @@ class ServerNode {
 
   // Worker side.
   void fuse_task(LocalMapSnapshot snapshot, std::chrono::steady_clock::time_point arrived);
-  void sighting_task(const runtime::Sighting& sighting, std::chrono::steady_clock::time_point arrived);
+  void sighting_task(const fusion::RobotSighting& sighting, std::chrono::steady_clock::time_point arrived);
   void record_fusions(const std::vector<fusion::FusionReport>& reports, double queue_wait_ms);
   // Durable state: load + replay (constructor), after each journaled task, snapshots.
   void recover_state();
@@ -220,7 +220,7 @@ class ServerNode {
   bool write_outputs(const LoopSnapshot& loop_side) const;
 
   void publish_ack(int robot_id, std::int64_t seq, runtime::LocalMapAck::Status status);
-  void publish_sighting_ack(const runtime::Sighting& s, runtime::SightingAck::Status status);
+  void publish_sighting_ack(const fusion::RobotSighting& s, runtime::SightingAck::Status status);
   void publish_frames();
   void publish_global_map();
   void publish_global_map_rate_limited();

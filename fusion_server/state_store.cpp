@@ -105,36 +105,6 @@ std::string stamp() {
 
 double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
-void write_sighting(ArchiveWriter& w, const runtime::Sighting& s) {
-  w.i64(s.utime);
-  w.i32(s.observer_id);
-  w.i32(s.observed_id);
-  w.pose(s.x_AB);
-  w.matrix3(s.covariance);
-  w.i64(s.observer_seq);
-  w.pose(s.x_LA);
-  w.matrix3(s.cov_LA);
-  w.i64(s.observed_seq);
-  w.pose(s.x_LB);
-  w.matrix3(s.cov_LB);
-}
-
-runtime::Sighting read_sighting(ArchiveReader& r) {
-  runtime::Sighting s;
-  s.utime = r.i64();
-  s.observer_id = r.i32();
-  s.observed_id = r.i32();
-  s.x_AB = r.pose();
-  s.covariance = r.matrix3();
-  s.observer_seq = r.i64();
-  s.x_LA = r.pose();
-  s.cov_LA = r.matrix3();
-  s.observed_seq = r.i64();
-  s.x_LB = r.pose();
-  s.cov_LB = r.matrix3();
-  return s;
-}
-
 // A journal file parsed as far as it is good.
 struct ParsedJournal {
   std::vector<JournalRecord> records;
@@ -229,7 +199,7 @@ std::string encode_server_state(const fusion::GlobalMap& map, const mission::Tra
   }
   w.count(sightings.size());
   for (const SightingRecord& s : sightings) {
-    write_sighting(w, s.sighting);
+    fusion::write_sighting(w, s.sighting);
     w.text(s.status);
   }
   w.f64(fusion_ms_sum);
@@ -273,7 +243,7 @@ ServerState decode_server_state(const std::string& payload) {
   }
   s.sightings.resize(r.count(64));
   for (SightingRecord& rec : s.sightings) {
-    rec.sighting = read_sighting(r);
+    rec.sighting = fusion::read_sighting(r);
     rec.status = r.text();
   }
   s.fusion_ms_sum = r.f64();

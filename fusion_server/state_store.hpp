@@ -84,8 +84,9 @@ namespace lmf::server {
 // inside is kGlobalMapArchiveVersion 5 (no transient re-entrancy flag). 6: archive
 // version 6 (frame registration), fusion reports carry its outcome. 7: the
 // authentication high-water marks (per signer, the highest seq of an input
-// applied) follow the server state.
-inline constexpr std::uint32_t kStateVersion = 7;
+// applied) follow the server state. 8: sighting records in the GlobalMap
+// archive's layout (one serializer for fusion::RobotSighting).
+inline constexpr std::uint32_t kStateVersion = 8;
 
 // The state directory cannot be used (in use, unreadable, every snapshot corrupt, I/O error).
 class StateError : public std::runtime_error {
@@ -100,7 +101,7 @@ struct FusionRecord {
 };
 
 struct SightingRecord {
-  runtime::Sighting sighting;
+  fusion::RobotSighting sighting;
   std::string status;
 };
 

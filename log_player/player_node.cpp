@@ -330,12 +330,12 @@ PlayerNode::SightingOutcome PlayerNode::try_sighting(const mission::SightingInpu
     return skip("no scan ack of robot " + to_string(ack_a ? input.observed : input.observer) + " by " +
                 to_string(input.utime) + " us");
   }
-  rt::Sighting s;
+  lmf::fusion::RobotSighting s;
   s.utime = input.utime;
   s.observer_id = input.observer;
   s.observed_id = input.observed;
   s.x_AB = input.x_AB;
-  s.covariance = input.covariance;
+  s.cov_AB = input.covariance;
   s.observer_seq = ack_a->local_map_seq;
   s.x_LA = ack_a->x_LR;
   s.cov_LA = ack_a->covariance;

@@ -105,7 +105,7 @@ void AgentNode::restore(const AgentState& state) {
   }
   for (const auto& [seq, bytes] : state.unacknowledged) pending_[seq].bytes = bytes;
   shipped_final_x_LR_ = state.shipped_final_x_LR;
-  if (state.frame) frame_ = Frame{state.frame->map_seq, state.frame->fusion_count, state.frame->x_WL};
+  frame_ = state.frame;
   mission_ended_ = state.mission_ended;
   counters_.maps_shipped = state.maps_shipped;
   counters_.maps_acknowledged = state.maps_acknowledged;
@@ -126,7 +126,7 @@ void AgentNode::persist() {
   state.origin = origin_;
   for (const auto& [seq, map] : pending_) state.unacknowledged[seq] = map.bytes;
   state.shipped_final_x_LR = shipped_final_x_LR_;
-  if (frame_) state.frame = AgentState::Frame{frame_->map_seq, frame_->fusion_count, frame_->x_WL};
+  state.frame = frame_;
   state.mission_ended = mission_ended_;
   state.maps_shipped = counters_.maps_shipped;
   state.maps_acknowledged = counters_.maps_acknowledged;
@@ -427,9 +427,9 @@ void AgentNode::on_corrected_frames(const std::string& channel, const void* data
     rejects_.record(frames.rejection(), channel);
     return;
   }
-  for (const rt::CorrectedFrame& f : frames.value().frames) {
+  for (const lmf::fusion::CorrectedFrame& f : frames.value().frames) {
     if (f.robot_id != options_.robot_id) continue;
-    const std::int64_t map_seq = f.last_applied_seq + 1;  // x_WL is the origin of this map
+    const std::int64_t map_seq = f.map_seq;  // x_WL is the origin of this map
     if (map_seq > local_map_.seq()) {
       reject(rt::RejectReason::kOutOfRange,
              "corrected frame for local map " + to_string(map_seq) + " but map " + to_string(local_map_.seq()) +

@@ -40,7 +40,7 @@
 // that much per map, not a stall). Status goes out at once when the
 // mission is done (a lockstep player ends the robots one by one on it).
 //
-// Corrected frames: x_WL is the origin of local map last_applied_seq + 1. The
+// Corrected frames: x_WL is the origin of local map map_seq. The
 // agent may be ahead (it shipped maps the server has not fused yet); it then
 // chains the final x_LR of the maps in between (kept since shipping).
 //
@@ -182,11 +182,7 @@ class AgentNode {
     std::int64_t map_seq = 0;
     runtime::ScanAck ack;
   };
-  struct Frame {
-    std::int64_t map_seq = 0;  // the local map whose origin x_WL is
-    std::int64_t fusion_count = 0;
-    Pose2 x_WL;
-  };
+  using Frame = AgentState::Frame;
 
   struct ProcessedScan {  // the latest scan processed: the next map's origin if it ships
     std::int64_t seq = 0;

@@ -622,16 +622,17 @@ Checked<CorrectedFrames> from_message(const lmf::corrected_frames_t& msg, const 
   std::set<int> seen;
   for (std::size_t i = 0; i < count; ++i) {
     const std::string what = "corrected_frames_t[" + to_string(i) + "]";
-    CorrectedFrame frame;
+    fusion::CorrectedFrame frame;
     frame.robot_id = msg.robot_ids[i];
     if (auto r = check_nonnegative(frame.robot_id, what + ".robot_id")) return *r;
     if (!seen.insert(frame.robot_id).second) {
       return reject(RejectReason::kOutOfRange, what + ": robot " + to_string(frame.robot_id) + " listed twice");
     }
-    frame.last_applied_seq = msg.last_applied_seq[i];
-    if (frame.last_applied_seq < -1) {
-      return reject(RejectReason::kOutOfRange, what + ".last_applied_seq = " + to_string(frame.last_applied_seq));
+    // The wire names the last local map fused; the frame is where the next one begins.
+    if (msg.last_applied_seq[i] < -1) {
+      return reject(RejectReason::kOutOfRange, what + ".last_applied_seq = " + to_string(msg.last_applied_seq[i]));
     }
+    frame.map_seq = msg.last_applied_seq[i] + 1;
     auto pose = pose_from(msg.frames[i], what + ".frame", limits);
     if (!pose) return pose.rejection();
     frame.x_WL = pose.value();
@@ -648,13 +649,13 @@ Checked<lmf::corrected_frames_t> to_message(const CorrectedFrames& frames, const
   msg.utime = frames.utime;
   msg.fusion_count = frames.fusion_count;
   msg.num_robots = static_cast<std::int32_t>(frames.frames.size());
-  for (const CorrectedFrame& frame : frames.frames) {
+  for (const fusion::CorrectedFrame& frame : frames.frames) {
     if (auto r = check_covariance(frame.covariance, "CorrectedFrame.covariance of robot " + to_string(frame.robot_id),
                                   tolerance)) {
       return *r;
     }
     msg.robot_ids.push_back(frame.robot_id);
-    msg.last_applied_seq.push_back(frame.last_applied_seq);
+    msg.last_applied_seq.push_back(frame.map_seq - 1);
     msg.frames.push_back(to_message(frame.x_WL));
     msg.covariance.push_back(pack_upper_triangle(frame.covariance));
   }
@@ -664,7 +665,7 @@ Checked<lmf::corrected_frames_t> to_message(const CorrectedFrames& frames, const
 
 // ---- sighting ----------------------------------------------------------------------------------
 
-Checked<Sighting> from_message(const lmf::sighting_t& msg, const DecodeLimits& limits) {
+Checked<fusion::RobotSighting> from_message(const lmf::sighting_t& msg, const DecodeLimits& limits) {
   if (auto r = check_nonnegative(msg.utime, "sighting_t.utime")) return *r;
   if (auto r = check_nonnegative(msg.observer_id, "sighting_t.observer_id")) return *r;
   if (auto r = check_nonnegative(msg.observed_id, "sighting_t.observed_id")) return *r;
@@ -682,12 +683,12 @@ Checked<Sighting> from_message(const lmf::sighting_t& msg, const DecodeLimits& l
   if (!cov_LA) return cov_LA.rejection();
   auto cov_LB = covariance3_from(msg.observed_covariance, 6, "sighting_t.observed_covariance");
   if (!cov_LB) return cov_LB.rejection();
-  Sighting out;
+  fusion::RobotSighting out;
   out.utime = msg.utime;
   out.observer_id = msg.observer_id;
   out.observed_id = msg.observed_id;
   out.x_AB = x_AB.value();
-  out.covariance = cov_AB.value();
+  out.cov_AB = cov_AB.value();
   out.observer_seq = msg.observer_seq;
   out.x_LA = x_LA.value();
   out.cov_LA = cov_LA.value();
@@ -697,10 +698,10 @@ Checked<Sighting> from_message(const lmf::sighting_t& msg, const DecodeLimits& l
   return out;
 }
 
-Checked<lmf::sighting_t> to_message(const Sighting& sighting, const CovarianceTolerance& tolerance) {
-  if (auto r = check_covariance(sighting.covariance, "Sighting.covariance", tolerance)) return *r;
-  if (auto r = check_covariance(sighting.cov_LA, "Sighting.cov_LA", tolerance)) return *r;
-  if (auto r = check_covariance(sighting.cov_LB, "Sighting.cov_LB", tolerance)) return *r;
+Checked<lmf::sighting_t> to_message(const fusion::RobotSighting& sighting, const CovarianceTolerance& tolerance) {
+  if (auto r = check_covariance(sighting.cov_AB, "RobotSighting.cov_AB", tolerance)) return *r;
+  if (auto r = check_covariance(sighting.cov_LA, "RobotSighting.cov_LA", tolerance)) return *r;
+  if (auto r = check_covariance(sighting.cov_LB, "RobotSighting.cov_LB", tolerance)) return *r;
   lmf::sighting_t msg;
   msg.utime = sighting.utime;
   msg.observer_id = sighting.observer_id;
@@ -710,7 +711,7 @@ Checked<lmf::sighting_t> to_message(const Sighting& sighting, const CovarianceTo
     const std::vector<double> packed = pack_upper_triangle(P);
     std::copy(packed.begin(), packed.end(), out);
   };
-  pack3(sighting.covariance, msg.covariance);
+  pack3(sighting.cov_AB, msg.covariance);
   msg.observer_seq = sighting.observer_seq;
   msg.observer_in_local = to_message(sighting.x_LA);
   pack3(sighting.cov_LA, msg.observer_covariance);

@@ -123,8 +123,8 @@ Checked<CorrectedFrames> from_message(const lmf::corrected_frames_t& msg, const 
 Checked<lmf::corrected_frames_t> to_message(const CorrectedFrames& frames,
                                             const CovarianceTolerance& tolerance = {});
 
-Checked<Sighting> from_message(const lmf::sighting_t& msg, const DecodeLimits& limits = {});
-Checked<lmf::sighting_t> to_message(const Sighting& sighting, const CovarianceTolerance& tolerance = {});
+Checked<fusion::RobotSighting> from_message(const lmf::sighting_t& msg, const DecodeLimits& limits = {});
+Checked<lmf::sighting_t> to_message(const fusion::RobotSighting& sighting, const CovarianceTolerance& tolerance = {});
 
 Checked<ScanAck> from_message(const lmf::scan_ack_t& msg, const DecodeLimits& limits = {});
 Checked<lmf::scan_ack_t> to_message(const ScanAck& ack, const CovarianceTolerance& tolerance = {});
@@ -156,7 +156,7 @@ struct MessageOf;  // the LCM type that carries Core
 template <> struct MessageOf<RobotScan> { using type = lmf::laser_scan_t; };
 template <> struct MessageOf<LocalMapSnapshot> { using type = lmf::local_map_t; };
 template <> struct MessageOf<CorrectedFrames> { using type = lmf::corrected_frames_t; };
-template <> struct MessageOf<Sighting> { using type = lmf::sighting_t; };
+template <> struct MessageOf<fusion::RobotSighting> { using type = lmf::sighting_t; };
 template <> struct MessageOf<ScanAck> { using type = lmf::scan_ack_t; };
 template <> struct MessageOf<LocalMapAck> { using type = lmf::local_map_ack_t; };
 template <> struct MessageOf<SightingAck> { using type = lmf::sighting_ack_t; };

@@ -1,5 +1,7 @@
 // Plain values carried by the LCM messages that have no home in the core yet
-// (no LCM inside: the core may take these by value). Frames and units as in
+// (no LCM inside: the core may take these by value). Those with a home there
+// travel as the core's own types: LocalMapSnapshot, fusion::CorrectedFrame,
+// fusion::RobotSighting. Frames and units as in
 // docs/design.md §3: x_AB is frame B seen from frame A, metres and radians.
 #pragma once
 
@@ -11,6 +13,8 @@
 
 #include <Eigen/Core>
 
+#include "lmf/fusion/corrected_frame.hpp"
+#include "lmf/fusion/robot_sighting.hpp"
 #include "lmf/geometry/pose2.hpp"
 #include "lmf/local_map/odometry_model.hpp"
 #include "lmf/scan/laser_scan.hpp"
@@ -60,36 +64,10 @@ struct SightingAck {
   Status status = Status::kApplied;
 };
 
-// The corrected local-map frame L_r of one joined robot (docs/design.md §5 step 6).
-struct CorrectedFrame {
-  int robot_id = 0;
-  std::int64_t last_applied_seq = -1;  // last local map fused for this robot, -1 if none
-  Pose2 x_WL;                          // where robot r's current local map starts, in W
-  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // Cov(p_L), symmetric PSD
-};
-
 struct CorrectedFrames {
   std::int64_t utime = 0;
   std::int64_t fusion_count = 0;  // fusions applied so far
-  std::vector<CorrectedFrame> frames;  // distinct robot ids
-};
-
-// Robot B (observed_id) seen from robot A (observer_id) at utime: lets B join
-// (docs/design.md §5). Besides the measurement x_AB it carries where each robot was in
-// its own local map at that moment, which the server cannot know by itself.
-// Mirrors lmf::fusion::RobotSighting field by field.
-struct Sighting {
-  std::int64_t utime = 0;
-  int observer_id = 0;
-  int observed_id = 0;
-  Pose2 x_AB;  // observed robot B in the observer's robot frame A
-  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // Cov of x_AB, symmetric PSD
-  std::int64_t observer_seq = 0;  // A's local map in progress at utime
-  Pose2 x_LA;                     // A's pose in that local map
-  Eigen::Matrix3d cov_LA = Eigen::Matrix3d::Zero();
-  std::int64_t observed_seq = 0;  // B's local map in progress at utime
-  Pose2 x_LB;                     // B's pose in that local map
-  Eigen::Matrix3d cov_LB = Eigen::Matrix3d::Zero();
+  std::vector<fusion::CorrectedFrame> frames;  // distinct robot ids
 };
 
 // Incoming messages refused, by reason name (runtime/rejection.hpp), as the

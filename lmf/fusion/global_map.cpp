@@ -192,7 +192,7 @@ std::optional<CorrectedFrame> GlobalMap::corrected_frame(int robot_id) const {
   const auto [seq, L] = arrivals_.current_frame(robot_id);
   CorrectedFrame f;
   f.robot_id = robot_id;
-  f.seq = seq;
+  f.map_seq = seq;
   f.x_WL = state_.root_location(L);
   f.covariance = frame_world_covariance(state_, L);
   return f;

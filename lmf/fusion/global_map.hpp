@@ -52,6 +52,7 @@
 
 #include <Eigen/Core>
 
+#include "lmf/fusion/corrected_frame.hpp"
 #include "lmf/fusion/environment_graph.hpp"
 #include "lmf/fusion/fusion_equations.hpp"
 #include "lmf/fusion/global_state.hpp"
@@ -268,14 +269,6 @@ struct FusionReport {
 
   MapCounts size_after;
   PhaseTimes time;
-};
-
-// A robot's current local frame L_r in W: the origin of its local map `seq`.
-struct CorrectedFrame {
-  int robot_id = 0;
-  std::int64_t seq = 0;
-  Pose2 x_WL;
-  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // of p_L (L's own frame)
 };
 
 struct SegmentView {

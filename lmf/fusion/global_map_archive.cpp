@@ -21,36 +21,6 @@ constexpr std::string_view kMapMagic("LMFGMAP\0", 8);
 // 65536² doubles is 32 GiB, beyond any map this server handles.
 constexpr std::int64_t kMaxCapacity = std::int64_t{1} << 16;
 
-void write_sighting(ArchiveWriter& w, const RobotSighting& s) {
-  w.i64(s.utime);
-  w.i32(s.observer_id);
-  w.i32(s.observed_id);
-  w.i64(s.observer_seq);
-  w.pose(s.x_LA);
-  w.matrix3(s.cov_LA);
-  w.pose(s.x_AB);
-  w.matrix3(s.cov_AB);
-  w.i64(s.observed_seq);
-  w.pose(s.x_LB);
-  w.matrix3(s.cov_LB);
-}
-
-RobotSighting read_sighting(ArchiveReader& r) {
-  RobotSighting s;
-  s.utime = r.i64();
-  s.observer_id = r.i32();
-  s.observed_id = r.i32();
-  s.observer_seq = r.i64();
-  s.x_LA = r.pose();
-  s.cov_LA = r.matrix3();
-  s.x_AB = r.pose();
-  s.cov_AB = r.matrix3();
-  s.observed_seq = r.i64();
-  s.x_LB = r.pose();
-  s.cov_LB = r.matrix3();
-  return s;
-}
-
 void write_optional(ArchiveWriter& w, const std::optional<double>& v) {
   w.boolean(v.has_value());
   w.f64(v.value_or(0.0));
@@ -408,6 +378,36 @@ LocalMapSnapshot read_local_map(ArchiveReader& r) {
     p.utime = r.i64();
     p.x_LR = r.pose();
   }
+  return s;
+}
+
+void write_sighting(ArchiveWriter& w, const RobotSighting& s) {
+  w.i64(s.utime);
+  w.i32(s.observer_id);
+  w.i32(s.observed_id);
+  w.i64(s.observer_seq);
+  w.pose(s.x_LA);
+  w.matrix3(s.cov_LA);
+  w.pose(s.x_AB);
+  w.matrix3(s.cov_AB);
+  w.i64(s.observed_seq);
+  w.pose(s.x_LB);
+  w.matrix3(s.cov_LB);
+}
+
+RobotSighting read_sighting(ArchiveReader& r) {
+  RobotSighting s;
+  s.utime = r.i64();
+  s.observer_id = r.i32();
+  s.observed_id = r.i32();
+  s.observer_seq = r.i64();
+  s.x_LA = r.pose();
+  s.cov_LA = r.matrix3();
+  s.x_AB = r.pose();
+  s.cov_AB = r.matrix3();
+  s.observed_seq = r.i64();
+  s.x_LB = r.pose();
+  s.cov_LB = r.matrix3();
   return s;
 }
 

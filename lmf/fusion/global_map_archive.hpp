@@ -73,6 +73,8 @@ void write_local_map(ArchiveWriter& w, const LocalMapSnapshot& s);
 LocalMapSnapshot read_local_map(ArchiveReader& r);
 void write_fusion_report(ArchiveWriter& w, const FusionReport& report);
 FusionReport read_fusion_report(ArchiveReader& r);
+void write_sighting(ArchiveWriter& w, const RobotSighting& s);
+RobotSighting read_sighting(ArchiveReader& r);
 
 // Field-by-field bitwise equality (a restored map must be configured exactly
 // like the one the caller would build).

@@ -89,7 +89,7 @@ nlohmann::json map_to_json(const GlobalMap& map) {
   nlohmann::json robots = nlohmann::json::array();
   for (const CorrectedFrame& r : map.corrected_frames()) {
     robots.push_back({{"id", r.robot_id},
-                      {"seq", r.seq},
+                      {"seq", r.map_seq},  // the local map that begins at "frame"
                       {"frame", pose_json(r.x_WL)},
                       {"covariance", matrix_json(r.covariance)}});
   }

@@ -26,7 +26,7 @@ std::vector<StampedPose> TrajectoryBook::final_trajectory(const fusion::GlobalMa
   }
   std::map<int64_t, Pose2> frames;
   Pose2 next_frame = current->x_WL;
-  int64_t next_seq = current->seq;
+  int64_t next_seq = current->map_seq;
   for (auto it = robot->second.rbegin(); it != robot->second.rend(); ++it) {
     const int64_t seq = it->first;
     if (!map.has_fused(robot_id, seq)) continue;

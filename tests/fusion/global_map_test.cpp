@@ -68,7 +68,7 @@ TEST(GlobalMapTest, FirstLocalMapCreatesASubmapAndMovesTheFrameByTheRobotPose) {
   // robot's, as the fusion takes it: scaled by local_map_covariance_scale.
   const std::optional<CorrectedFrame> f = map.corrected_frame(0);
   ASSERT_TRUE(f.has_value());
-  EXPECT_EQ(f->seq, 1);
+  EXPECT_EQ(f->map_seq, 1);
   EXPECT_TRUE(is_near(f->x_WL, x_LR, 1e-12, 1e-12));
   const double scale = map.config().local_map_covariance_scale;
   EXPECT_EQ(scale, 6.0);
@@ -371,7 +371,7 @@ TEST(GlobalMapTest, RobotJoinsBySightingAndItsWaitingMapsAreFusedInOrder) {
   EXPECT_TRUE(map.has_fused(1, 1));
 
   const CorrectedFrame f = *map.corrected_frame(1);
-  EXPECT_EQ(f.seq, 2);
+  EXPECT_EQ(f.map_seq, 2);
   EXPECT_TRUE(is_near(f.x_WL, x_WL1_2, 1e-6, 1e-6));
   EXPECT_EQ(map.counts().segments, 8);  // nothing duplicated
   EXPECT_GE(min_eigenvalue(map), -1e-12);
@@ -479,7 +479,7 @@ TEST(GlobalMapTest, LateLocalMapsAreAnchoredBackwards) {
   EXPECT_EQ(late0[0].pairings_accepted, 2);
   EXPECT_EQ(map.counts().segments, 8);
   for (const Wall& w : walls) EXPECT_NE(find_segment(map.segments(), w, 1e-6, 1e-6), nullptr);
-  EXPECT_EQ(map.corrected_frame(5)->seq, 4);
+  EXPECT_EQ(map.corrected_frame(5)->map_seq, 4);
   EXPECT_TRUE(is_near(map.corrected_frame(5)->x_WL, x_WL[4], 1e-9, 1e-9));
   EXPECT_THROW(map.fuse(synthetic::make_snapshot(5, 1, x_WL[1], step, walls)), std::invalid_argument);
   EXPECT_GE(min_eigenvalue(map), -1e-12);
@@ -498,7 +498,7 @@ TEST(GlobalMapTest, OutOfOrderMapsWaitForTheMissingOne) {
   ASSERT_EQ(both.size(), 2u);
   EXPECT_EQ(both[0].seq, 1);
   EXPECT_EQ(both[1].seq, 2);
-  EXPECT_EQ(map.corrected_frame(0)->seq, 3);
+  EXPECT_EQ(map.corrected_frame(0)->map_seq, 3);
 }
 
 TEST(GlobalMapTest, InvalidSnapshotsAreRejectedAndTheMapIsUnchanged) {

@@ -7,7 +7,7 @@
 #include "decode_target.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  return lmf::fuzz::fuzz_decode<lmf::runtime::Sighting>(data, size);
+  return lmf::fuzz::fuzz_decode<lmf::fusion::RobotSighting>(data, size);
 }
 
 std::vector<lmf::fuzz::Bytes> LmfFuzzSeeds() {

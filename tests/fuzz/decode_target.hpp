@@ -37,8 +37,8 @@ inline void check_accepted(const LocalMapSnapshot& m) { check_covariance_accepte
 inline void check_accepted(const runtime::CorrectedFrames& f) {
   for (const auto& frame : f.frames) check_covariance_accepted(frame.covariance, "corrected_frames_t");
 }
-inline void check_accepted(const runtime::Sighting& s) {
-  check_covariance_accepted(s.covariance, "sighting_t.covariance");
+inline void check_accepted(const fusion::RobotSighting& s) {
+  check_covariance_accepted(s.cov_AB, "sighting_t.covariance");
   check_covariance_accepted(s.cov_LA, "sighting_t.observer_covariance");
   check_covariance_accepted(s.cov_LB, "sighting_t.observed_covariance");
 }

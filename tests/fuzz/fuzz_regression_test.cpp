@@ -166,7 +166,7 @@ TEST(FuzzMachinery, FingerprintSeesEveryKindOfChange) {
   queued.fuse(stranger);
   EXPECT_FALSE(lmf::fuzz::fingerprint(queued) == prepared);
   lmf::fusion::GlobalMap joined = c.prepared_map;
-  joined.add_sighting(lmf::server::to_robot_sighting(c.pending_sightings.front()));
+  joined.add_sighting(c.pending_sightings.front());
   EXPECT_FALSE(lmf::fuzz::fingerprint(joined) == prepared);
 }
 

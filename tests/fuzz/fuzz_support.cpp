@@ -146,13 +146,9 @@ runtime::CorrectedFrames corrected_frames_of(const fusion::GlobalMap& map, std::
   runtime::CorrectedFrames out;
   out.utime = 30'000'000;
   out.fusion_count = fusions;
-  for (const fusion::CorrectedFrame& f : map.corrected_frames()) {
-    runtime::CorrectedFrame c;
-    c.robot_id = f.robot_id;
-    c.last_applied_seq = f.seq - 1;
-    c.x_WL = f.x_WL;
-    c.covariance = 0.5 * (f.covariance + f.covariance.transpose());  // as lmf-server publishes it
-    out.frames.push_back(c);
+  for (fusion::CorrectedFrame f : map.corrected_frames()) {
+    f.covariance = 0.5 * (f.covariance + f.covariance.transpose());  // as lmf-server publishes it
+    out.frames.push_back(f);
   }
   return out;
 }
@@ -218,12 +214,12 @@ Corpus make_corpus() {
   for (const sim::Sighting& s : mission.sightings) {
     const runtime::ScanAck& a = acks[static_cast<std::size_t>(s.observer)][s.observer_scan];
     const runtime::ScanAck& b = acks[static_cast<std::size_t>(s.observed)][s.observed_scan];
-    runtime::Sighting out;
+    fusion::RobotSighting out;
     out.utime = s.utime;
     out.observer_id = s.observer;
     out.observed_id = s.observed;
     out.x_AB = s.x_AB;
-    out.covariance = sighting_covariance();
+    out.cov_AB = sighting_covariance();
     out.observer_seq = a.local_map_seq;
     out.x_LA = a.x_LR;
     out.cov_LA = 0.5 * (a.covariance + a.covariance.transpose());
@@ -247,13 +243,13 @@ Corpus make_corpus() {
   // Robot 2 (never simulated) seen by robot 0 and by robot 1 in the local
   // maps the prepared map expects next from them (so robot 2 joins).
   for (int observer = 0; observer < 2; ++observer) {
-    runtime::Sighting s;
+    fusion::RobotSighting s;
     s.utime = 20'000'000 + observer;
     s.observer_id = observer;
     s.observed_id = 2;
     s.x_AB = Pose2(2.5, -0.4, 2.8);
-    s.covariance = sighting_covariance();
-    s.observer_seq = c.prepared_map.corrected_frame(observer).value().seq;
+    s.cov_AB = sighting_covariance();
+    s.observer_seq = c.prepared_map.corrected_frame(observer).value().map_seq;
     s.x_LA = Pose2(1.2, 0.1, 0.05);
     s.cov_LA = Eigen::Vector3d(4e-4, 3e-4, 1e-4).asDiagonal();
     s.observed_seq = 0;
@@ -339,7 +335,7 @@ MapFingerprint fingerprint(const fusion::GlobalMap& map) {
   }
   for (const fusion::CorrectedFrame& c : map.corrected_frames()) {
     h.integer(c.robot_id);
-    h.integer(c.seq);
+    h.integer(c.map_seq);
     h.pose(c.x_WL);
     h.matrix(c.covariance);
   }
@@ -470,20 +466,20 @@ std::string difference(const runtime::CorrectedFrames& a, const runtime::Correct
   for (std::size_t i = 0; i < a.frames.size() && i < b.frames.size(); ++i) {
     const std::string what = "frames[" + std::to_string(i) + "]";
     d.integer(a.frames[i].robot_id, b.frames[i].robot_id, what + ".robot_id");
-    d.integer(a.frames[i].last_applied_seq, b.frames[i].last_applied_seq, what + ".last_applied_seq");
+    d.integer(a.frames[i].map_seq, b.frames[i].map_seq, what + ".map_seq");
     d.pose(a.frames[i].x_WL, b.frames[i].x_WL, what + ".x_WL");
     d.matrix(a.frames[i].covariance, b.frames[i].covariance, what + ".covariance");
   }
   return d.result();
 }
 
-std::string difference(const runtime::Sighting& a, const runtime::Sighting& b) {
+std::string difference(const fusion::RobotSighting& a, const fusion::RobotSighting& b) {
   Differ d;
   d.integer(a.utime, b.utime, "utime");
   d.integer(a.observer_id, b.observer_id, "observer_id");
   d.integer(a.observed_id, b.observed_id, "observed_id");
   d.pose(a.x_AB, b.x_AB, "x_AB");
-  d.matrix(a.covariance, b.covariance, "covariance");
+  d.matrix(a.cov_AB, b.cov_AB, "cov_AB");
   d.integer(a.observer_seq, b.observer_seq, "observer_seq");
   d.pose(a.x_LA, b.x_LA, "x_LA");
   d.matrix(a.cov_LA, b.cov_LA, "cov_LA");

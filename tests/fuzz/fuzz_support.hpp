@@ -32,7 +32,6 @@
 #include "lmf/local_map/local_map_snapshot.hpp"
 #include "lmf/scan/laser_scan.hpp"
 #include "lmf/server_status_t.hpp"
-#include "fusion_server/sighting_conversion.hpp"
 #include "runtime/convert.hpp"
 #include "runtime/messages.hpp"
 
@@ -59,7 +58,7 @@ struct Corpus {
   std::vector<runtime::RobotScan> scans;        // both robots, a spread over the mission
   std::vector<LocalMapSnapshot> local_maps;     // every local map both robots shipped
   std::vector<runtime::ScanAck> scan_acks;      // the agents' state after each kept scan
-  std::vector<runtime::Sighting> sightings;     // the simulator's, with the agents' state then
+  std::vector<fusion::RobotSighting> sightings;     // the simulator's, with the agents' state then
   std::vector<runtime::CorrectedFrames> corrected_frames;
   std::vector<runtime::LocalMapAck> local_map_acks;
   std::vector<runtime::SightingAck> sighting_acks;
@@ -75,7 +74,7 @@ struct Corpus {
   // fuse target's seeds), `pending_sightings` sightings of robot 2 (unknown to the map).
   fusion::GlobalMap prepared_map;
   std::vector<LocalMapSnapshot> pending_maps;
-  std::vector<runtime::Sighting> pending_sightings;
+  std::vector<fusion::RobotSighting> pending_sightings;
 
   // Robot 0's LocalMap a few scans before the end of the mission (as its
   // agent holds it) and the scans that follow (the local_map_scan target's seeds).
@@ -107,7 +106,7 @@ std::string covariance_violation(const Eigen::MatrixXd& P);
 std::string difference(const runtime::RobotScan& a, const runtime::RobotScan& b);
 std::string difference(const LocalMapSnapshot& a, const LocalMapSnapshot& b);
 std::string difference(const runtime::CorrectedFrames& a, const runtime::CorrectedFrames& b);
-std::string difference(const runtime::Sighting& a, const runtime::Sighting& b);
+std::string difference(const fusion::RobotSighting& a, const fusion::RobotSighting& b);
 std::string difference(const runtime::ScanAck& a, const runtime::ScanAck& b);
 std::string difference(const runtime::LocalMapAck& a, const runtime::LocalMapAck& b);
 std::string difference(const runtime::SightingAck& a, const runtime::SightingAck& b);

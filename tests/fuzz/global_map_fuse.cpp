@@ -163,9 +163,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       break;
     }
     case kSighting: {
-      const auto decoded = lmf::runtime::decode<lmf::runtime::Sighting>(bytes, length);
+      const auto decoded = lmf::runtime::decode<lmf::fusion::RobotSighting>(bytes, length);
       if (!decoded_or_note(decoded)) return 0;
-      const lmf::fusion::RobotSighting s = lmf::server::to_robot_sighting(decoded.value());
+      const lmf::fusion::RobotSighting s = decoded.value();
       apply("add_sighting(decoded sighting)", [&](lmf::fusion::GlobalMap& map) { map.add_sighting(s); });
       break;
     }
@@ -205,7 +205,7 @@ std::vector<Bytes> LmfFuzzSeeds() {
   lmf::LocalMapSnapshot stranger = c.local_maps.front();
   stranger.robot_id = 5;
   seeds.push_back(with_path(kLocalMap, lmf::fuzz::encode(lmf::runtime::to_message(stranger).value())));
-  for (const lmf::runtime::Sighting& s : c.pending_sightings) {
+  for (const lmf::fusion::RobotSighting& s : c.pending_sightings) {
     const lmf::sighting_t msg = lmf::runtime::to_message(s).value();
     seeds.push_back(with_path(kSighting, lmf::fuzz::encode(msg)));
     seeds.push_back(with_path(kRawSighting, lmf::fuzz::encode(msg)));

@@ -95,7 +95,7 @@ TEST_F(ServerHostileInput, EveryKindOfBadMessageIsRejectedByReasonAndTheMapIsTha
   ASSERT_TRUE(send(node, channels_.local_map(), to_msg(room_local_map(0, 0))));
   reference.fuse(room_local_map(0, 0));
   ASSERT_TRUE(send(node, channels_.sighting(), to_msg(make_sighting(0, 2, 500'000))));
-  reference.add_sighting(lmf::server::to_robot_sighting(make_sighting(0, 2, 500'000)));
+  reference.add_sighting(make_sighting(0, 2, 500'000));
   const std::int64_t fusions = node.view().fusion_count;
   ASSERT_EQ(node.view().counts.robots_joined, 2);
   ASSERT_EQ(lmf::fuzz::fingerprint(reference).counts.robots_joined, 2);
@@ -211,14 +211,14 @@ TEST_F(ServerHostileInput, MutatedMessagesLeaveTheSameMapAsTheServersDecisionsOn
                                    : (sighting ? sighting_mutator.input(7, i) : map_mutator.input(7, i));
     ASSERT_TRUE(send(node, sighting ? channels_.sighting() : channels_.local_map(), bytes)) << "input " << i;
     if (sighting) {
-      const auto s = rt::decode<rt::Sighting>(bytes.data(), bytes.size(), limits);
+      const auto s = rt::decode<lmf::fusion::RobotSighting>(bytes.data(), bytes.size(), limits);
       if (!s || s.value().observer_id >= kMaxRobots || s.value().observed_id >= kMaxRobots ||
           !seen_sightings.insert({s.value().utime, s.value().observer_id, s.value().observed_id}).second) {
         ++reference_rejects;
         continue;
       }
       try {
-        reference.add_sighting(lmf::server::to_robot_sighting(s.value()));
+        reference.add_sighting(s.value());
       } catch (const lmf::fusion::InvalidInput&) {
         ++reference_rejects;
       }

@@ -221,7 +221,7 @@ TEST(AgentNode, ShipsBeforeTheAckResendsUntilAckedAndChainsCorrectedFrames) {
   const Pose2 x_WL1(10.0, -2.0, 0.5 * std::numbers::pi);
   rt::CorrectedFrames frames;
   frames.fusion_count = 4;
-  frames.frames.push_back({2, 0, x_WL1, Eigen::Matrix3d::Identity() * 1e-4});
+  frames.frames.push_back({2, 1, x_WL1, Eigen::Matrix3d::Identity() * 1e-4});  // robot 2, map 1
   frames.frames.push_back({5, 3, Pose2(), Eigen::Matrix3d::Zero()});  // another robot's
   rig.bus.publish(rig.channels.corrected_frames(), rt::to_message(frames).value());
   rig.drain();
@@ -238,7 +238,7 @@ TEST(AgentNode, ShipsBeforeTheAckResendsUntilAckedAndChainsCorrectedFrames) {
   frames.frames[0].x_WL = Pose2(-50.0, 0.0, 0.0);
   rig.bus.publish(rig.channels.corrected_frames(), rt::to_message(frames).value());
   frames.fusion_count = 9;
-  frames.frames[0].last_applied_seq = shipped + 3;
+  frames.frames[0].map_seq = shipped + 4;
   rig.bus.publish(rig.channels.corrected_frames(), rt::to_message(frames).value());
   rig.drain();
   EXPECT_TRUE(lmf::is_near(*rig.agent->global_pose(), expected, 1e-12, 1e-12));
@@ -246,7 +246,7 @@ TEST(AgentNode, ShipsBeforeTheAckResendsUntilAckedAndChainsCorrectedFrames) {
 
   // The frame of the current map: global pose = x_WL ⊕ x_LR.
   frames.fusion_count = 10;
-  frames.frames[0].last_applied_seq = shipped - 1;
+  frames.frames[0].map_seq = shipped;
   frames.frames[0].x_WL = Pose2(1.0, 2.0, 3.0);
   rig.bus.publish(rig.channels.corrected_frames(), rt::to_message(frames).value());
   rig.drain();

@@ -183,7 +183,7 @@ TEST_F(PlayerMission, LockstepAcksEverythingAndEqualsOffline) {
   for (const auto& frame : offline.global_map().corrected_frames()) {
     const auto ours = s->server->map().corrected_frame(frame.robot_id);
     ASSERT_TRUE(ours.has_value());
-    EXPECT_EQ(ours->seq, frame.seq);
+    EXPECT_EQ(ours->map_seq, frame.map_seq);
     EXPECT_TRUE(lmf::is_near(ours->x_WL, frame.x_WL, 1e-3, 1e-4))
         << "robot " << frame.robot_id << ": " << ours->x_WL.x - frame.x_WL.x << " " << ours->x_WL.y - frame.x_WL.y
         << " " << ours->x_WL.phi - frame.x_WL.phi;
@@ -394,7 +394,7 @@ TEST_F(PlayerMission, LockstepUnderTwentyPercentScanLossEqualsTheLosslessRunAndK
   for (const auto& frame : lossless->server->map().corrected_frames()) {
     const auto ours = lossy->server->map().corrected_frame(frame.robot_id);
     ASSERT_TRUE(ours.has_value());
-    EXPECT_EQ(ours->seq, frame.seq);
+    EXPECT_EQ(ours->map_seq, frame.map_seq);
     EXPECT_TRUE(lmf::is_near(ours->x_WL, frame.x_WL, 1e-3, 1e-4)) << "robot " << frame.robot_id;
   }
   // The pace: a fixed 1 s wait per loss would take pc.scan_resends seconds more.

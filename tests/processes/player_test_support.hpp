@@ -16,7 +16,6 @@
 
 #include <gtest/gtest.h>
 
-#include "fusion_server/sighting_conversion.hpp"
 #include "lmf/fusion/global_map.hpp"
 #include "lmf/mission/mission_inputs.hpp"
 #include "lmf/mission/offline_mission.hpp"
@@ -197,12 +196,12 @@ class FakeServer {
   }
 
   void on_sighting(const void* data, std::size_t size) {
-    auto sighting = runtime::decode<runtime::Sighting>(data, size);
+    auto sighting = runtime::decode<fusion::RobotSighting>(data, size);
     if (!sighting) {
       ++rejected_;
       return;
     }
-    const runtime::Sighting& s = sighting.value();
+    const fusion::RobotSighting& s = sighting.value();
     const int received = ++sightings_received_[{s.utime, s.observer_id, s.observed_id}];
     if (received <= ignore_first_sightings_) return;
     runtime::SightingAck ack{s.utime, s.observer_id, s.observed_id, runtime::SightingAck::Status::kApplied};
@@ -212,7 +211,7 @@ class FakeServer {
       return;
     }
     ++sightings_;
-    record(map_.add_sighting(server::to_robot_sighting(s)).fused);
+    record(map_.add_sighting(s).fused);
     bus_.publish(channels_.sighting_ack(), runtime::to_message(ack));
   }
 
@@ -221,9 +220,7 @@ class FakeServer {
     fusions_ += static_cast<std::int64_t>(reports.size());
     runtime::CorrectedFrames frames;
     frames.fusion_count = fusions_;
-    for (const fusion::CorrectedFrame& f : map_.corrected_frames()) {
-      frames.frames.push_back({f.robot_id, f.seq - 1, f.x_WL, f.covariance});
-    }
+    frames.frames = map_.corrected_frames();
     auto msg = runtime::to_message(frames);
     if (msg) bus_.publish(channels_.corrected_frames(), msg.value());
   }

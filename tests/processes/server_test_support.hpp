@@ -65,14 +65,14 @@ inline LocalMapSnapshot room_local_map(int robot_id, std::int64_t seq, std::size
 }
 
 // Robot `observed` seen 2 m ahead by robot `observer` at `utime`.
-inline runtime::Sighting make_sighting(int observer, int observed, std::int64_t utime,
-                                       std::int64_t observed_seq = 0) {
-  runtime::Sighting s;
+inline fusion::RobotSighting make_sighting(int observer, int observed, std::int64_t utime,
+                                           std::int64_t observed_seq = 0) {
+  fusion::RobotSighting s;
   s.utime = utime;
   s.observer_id = observer;
   s.observed_id = observed;
   s.x_AB = Pose2(2.0, 0.5, 0.1);
-  s.covariance = Eigen::Vector3d(0.0025, 0.0025, 0.0004).asDiagonal();
+  s.cov_AB = Eigen::Vector3d(0.0025, 0.0025, 0.0004).asDiagonal();
   s.observer_seq = 0;
   s.x_LA = Pose2(0.2, 0.0, 0.0);
   s.cov_LA = Eigen::Matrix3d::Identity() * 1e-4;
@@ -90,7 +90,7 @@ inline local_map_t to_msg(const LocalMapSnapshot& s) {
 }
 
 // The LCM message of a valid sighting (a failed conversion fails the test).
-inline sighting_t to_msg(const runtime::Sighting& s) {
+inline sighting_t to_msg(const fusion::RobotSighting& s) {
   auto msg = runtime::to_message(s);
   EXPECT_TRUE(msg.ok()) << (msg.ok() ? "" : msg.rejection().describe());
   return msg.value();

@@ -329,7 +329,7 @@ class ServerStateTest : public lmf::testing::ServerNodeFixture {
   void publish_map(int robot, std::int64_t seq, const Pose2& x_WL0 = Pose2()) {
     bus_.publish(channels_.local_map(), to_msg(make_map(robot, seq, x_WL0)));
   }
-  void publish_sighting(const rt::Sighting& s) { bus_.publish(channels_.sighting(), to_msg(s)); }
+  void publish_sighting(const lmf::fusion::RobotSighting& s) { bus_.publish(channels_.sighting(), to_msg(s)); }
 
   static std::string archive(const lmf::fusion::GlobalMap& map) {
     std::ostringstream out;

@@ -89,7 +89,7 @@ inline void expect_frames_as_offline(const fusion::GlobalMap& map, const fusion:
   for (const auto& frame : offline.corrected_frames()) {
     const auto ours = map.corrected_frame(frame.robot_id);
     ASSERT_TRUE(ours.has_value());
-    EXPECT_EQ(ours->seq, frame.seq);
+    EXPECT_EQ(ours->map_seq, frame.map_seq);
     EXPECT_TRUE(is_near(ours->x_WL, frame.x_WL, tolerance_m, tolerance_rad))
         << "robot " << frame.robot_id << ": " << ours->x_WL.x << " " << ours->x_WL.y << " " << ours->x_WL.phi
         << " vs offline " << frame.x_WL.x << " " << frame.x_WL.y << " " << frame.x_WL.phi;

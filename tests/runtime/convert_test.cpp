@@ -16,7 +16,7 @@ namespace {
 
 using lmf::Pose2;
 using lmf::runtime::Checked;
-using lmf::runtime::CorrectedFrame;
+using lmf::fusion::CorrectedFrame;
 using lmf::runtime::CorrectedFrames;
 using lmf::runtime::DecodeLimits;
 using lmf::runtime::LocalMapAck;
@@ -25,7 +25,7 @@ using lmf::runtime::MissionEnd;
 using lmf::runtime::RejectReason;
 using lmf::runtime::RobotScan;
 using lmf::runtime::ScanAck;
-using lmf::runtime::Sighting;
+using lmf::fusion::RobotSighting;
 namespace rt = lmf::runtime;
 
 constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
@@ -80,25 +80,25 @@ CorrectedFrames make_frames() {
   frames.fusion_count = 12;
   CorrectedFrame first;
   first.robot_id = 0;
-  first.last_applied_seq = 4;
+  first.map_seq = 5;  // sent as last_applied_seq 4
   first.x_WL = Pose2(10.0, -1.0, std::numbers::pi);  // pi itself is inside (-pi, pi]
   first.covariance = Eigen::Matrix3d::Zero();        // the first robot defines W
   CorrectedFrame second;
   second.robot_id = 5;
-  second.last_applied_seq = -1;
+  second.map_seq = 0;  // nothing fused yet: last_applied_seq -1
   second.x_WL = Pose2(-3.0, 2.0, 0.7);
   second.covariance = random_covariance(3, 3, 3);
   frames.frames = {first, second};
   return frames;
 }
 
-Sighting make_sighting() {
-  Sighting s;
+RobotSighting make_sighting() {
+  RobotSighting s;
   s.utime = 77;
   s.observer_id = 0;
   s.observed_id = 1;
   s.x_AB = Pose2(2.0, 0.3, -2.0);
-  s.covariance = Eigen::Vector3d(0.01, 0.01, 0.002).asDiagonal();
+  s.cov_AB = Eigen::Vector3d(0.01, 0.01, 0.002).asDiagonal();
   s.observer_seq = 4;
   s.x_LA = Pose2(5.0, 1.0, 0.5);
   s.cov_LA = random_covariance(3, 2, 9);
@@ -223,6 +223,8 @@ TEST(Convert, CorrectedFramesRoundTrip) {
   const CorrectedFrames frames = make_frames();
   const auto msg = rt::to_message(frames);
   ASSERT_TRUE(msg.ok()) << msg.rejection().describe();
+  // The wire names the last local map fused, the core the map that begins at x_WL.
+  EXPECT_EQ(msg.value().last_applied_seq, (std::vector<std::int64_t>{4, -1}));
   const auto back = through_bytes<CorrectedFrames>(msg.value());
   ASSERT_TRUE(back.ok()) << back.rejection().describe();
   EXPECT_EQ(back.value().utime, frames.utime);
@@ -232,23 +234,23 @@ TEST(Convert, CorrectedFramesRoundTrip) {
     const CorrectedFrame& a = frames.frames[i];
     const CorrectedFrame& b = back.value().frames[i];
     EXPECT_EQ(b.robot_id, a.robot_id);
-    EXPECT_EQ(b.last_applied_seq, a.last_applied_seq);
+    EXPECT_EQ(b.map_seq, a.map_seq);
     EXPECT_TRUE(lmf::is_near(b.x_WL, a.x_WL, 0.0, 0.0));
     EXPECT_TRUE(lmf::testing::matrices_near(b.covariance, a.covariance, 0.0));
   }
 }
 
 TEST(Convert, SightingRoundTrips) {
-  const Sighting s = make_sighting();
+  const RobotSighting s = make_sighting();
   const auto msg = rt::to_message(s);
   ASSERT_TRUE(msg.ok()) << msg.rejection().describe();
-  const auto back = through_bytes<Sighting>(msg.value());
+  const auto back = through_bytes<RobotSighting>(msg.value());
   ASSERT_TRUE(back.ok()) << back.rejection().describe();
   EXPECT_EQ(back.value().utime, 77);
   EXPECT_EQ(back.value().observer_id, 0);
   EXPECT_EQ(back.value().observed_id, 1);
   EXPECT_TRUE(lmf::is_near(back.value().x_AB, s.x_AB, 0.0, 0.0));
-  EXPECT_TRUE(lmf::testing::matrices_near(back.value().covariance, s.covariance, 0.0));
+  EXPECT_TRUE(lmf::testing::matrices_near(back.value().cov_AB, s.cov_AB, 0.0));
   EXPECT_EQ(back.value().observer_seq, 4);
   EXPECT_TRUE(lmf::is_near(back.value().x_LA, s.x_LA, 0.0, 0.0));
   EXPECT_TRUE(lmf::testing::matrices_near(back.value().cov_LA, s.cov_LA, 0.0));
@@ -487,7 +489,7 @@ TEST(ConvertRejects, TruncatedPaddedAndForeignBuffers) {
   // A sighting's bytes on a scan channel: wrong fingerprint.
   const auto sighting = rt::encode_message(rt::to_message(make_sighting()).value());
   EXPECT_EQ(reason_of(rt::decode<RobotScan>(sighting.data(), sighting.size())), RejectReason::kDecodeFailed);
-  EXPECT_EQ(reason_of(rt::decode<Sighting>(sighting.data(), sighting.size() - 1)), RejectReason::kDecodeFailed);
+  EXPECT_EQ(reason_of(rt::decode<RobotSighting>(sighting.data(), sighting.size() - 1)), RejectReason::kDecodeFailed);
 }
 
 TEST(ConvertRejects, ForgedCountsNeverAllocate) {
@@ -574,10 +576,10 @@ TEST(ConvertRejects, NonFinite) {
 
   auto sighting = rt::to_message(make_sighting()).value();
   sighting.covariance[5] = -std::numeric_limits<double>::infinity();
-  EXPECT_EQ(reason_of(through_bytes<Sighting>(sighting)), RejectReason::kNonFinite);
+  EXPECT_EQ(reason_of(through_bytes<RobotSighting>(sighting)), RejectReason::kNonFinite);
   sighting = rt::to_message(make_sighting()).value();
   sighting.observer_in_local.y = kNan;
-  EXPECT_EQ(reason_of(through_bytes<Sighting>(sighting)), RejectReason::kNonFinite);
+  EXPECT_EQ(reason_of(through_bytes<RobotSighting>(sighting)), RejectReason::kNonFinite);
   auto frames = rt::to_message(make_frames()).value();
   frames.frames[1].y = kNan;
   EXPECT_EQ(reason_of(through_bytes<CorrectedFrames>(frames)), RejectReason::kNonFinite);
@@ -622,8 +624,8 @@ TEST(ConvertRejects, AsymmetricCovarianceCannotLeave) {
   lmf::LocalMapSnapshot map = make_map(2);
   map.covariance(1, 4) += 1e-3;
   EXPECT_EQ(reason_of(rt::to_message(map)), RejectReason::kCovarianceNotSymmetric);
-  Sighting s = make_sighting();
-  s.covariance(0, 2) = 0.001;
+  RobotSighting s = make_sighting();
+  s.cov_AB(0, 2) = 0.001;
   EXPECT_EQ(reason_of(rt::to_message(s)), RejectReason::kCovarianceNotSymmetric);
   CorrectedFrames frames = make_frames();
   frames.frames[1].covariance(2, 0) += 0.5;
@@ -644,10 +646,10 @@ TEST(ConvertRejects, IndefiniteCovariance) {
   EXPECT_EQ(reason_of(through_bytes<lmf::LocalMapSnapshot>(map)), RejectReason::kCovarianceNotPsd);
   auto sighting = rt::to_message(make_sighting()).value();
   sighting.covariance[5] = -1e-4;  // a negative variance
-  EXPECT_EQ(reason_of(through_bytes<Sighting>(sighting)), RejectReason::kCovarianceNotPsd);
+  EXPECT_EQ(reason_of(through_bytes<RobotSighting>(sighting)), RejectReason::kCovarianceNotPsd);
   sighting = rt::to_message(make_sighting()).value();
   sighting.observed_covariance[1] = 0.5;  // off-diagonal without variances
-  EXPECT_EQ(reason_of(through_bytes<Sighting>(sighting)), RejectReason::kCovarianceNotPsd);
+  EXPECT_EQ(reason_of(through_bytes<RobotSighting>(sighting)), RejectReason::kCovarianceNotPsd);
   auto frames = rt::to_message(make_frames()).value();
   frames.covariance[1] = {1.0, 0.0, 1.1, 1.0, 0.0, 1.0};
   EXPECT_EQ(reason_of(through_bytes<CorrectedFrames>(frames)), RejectReason::kCovarianceNotPsd);
@@ -691,12 +693,12 @@ TEST(ConvertRejects, OutOfRange) {
   EXPECT_EQ(reason_of(through_bytes<RobotScan>(scan)), RejectReason::kOutOfRange);
   auto sighting = rt::to_message(make_sighting()).value();
   sighting.observed_seq = -2;
-  EXPECT_EQ(reason_of(through_bytes<Sighting>(sighting)), RejectReason::kOutOfRange);
+  EXPECT_EQ(reason_of(through_bytes<RobotSighting>(sighting)), RejectReason::kOutOfRange);
   // A robot "seeing itself" decodes: the server answers it REJECTED (an ack
   // needs the decoded ids), so the player stops resending it.
   sighting = rt::to_message(make_sighting()).value();
   sighting.observed_id = sighting.observer_id;
-  EXPECT_TRUE(through_bytes<Sighting>(sighting).ok());
+  EXPECT_TRUE(through_bytes<RobotSighting>(sighting).ok());
   auto frames = rt::to_message(make_frames()).value();
   frames.robot_ids[1] = frames.robot_ids[0];
   EXPECT_EQ(reason_of(through_bytes<CorrectedFrames>(frames)), RejectReason::kOutOfRange);
