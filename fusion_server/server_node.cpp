@@ -47,14 +47,6 @@ runtime::RejectReason reason_of(fusion::InvalidInput::Reason reason) {
   return runtime::RejectReason::kOutOfRange;
 }
 
-json report_json(const fusion::FusionReport& r, double queue_wait_ms) {
-  json j = mission::fusion_report_json(r);
-  j["queue_wait_ms"] = queue_wait_ms;
-  return j;
-}
-
-std::string trajectory_name(int robot_id) { return "robot" + std::to_string(robot_id); }
-
 }  // namespace
 
 void ServerOptions::validate() const {
@@ -92,14 +84,14 @@ struct ServerNode::Outcome {
 ServerNode::ServerNode(runtime::Bus& bus, runtime::EventLoop& loop, runtime::Channels channels,
                        ServerOptions options)
     : bus_(bus), loop_(loop), channels_(std::move(channels)), options_(std::move(options)),
-      map_((options_.validate(), options_.global_map)) {
+      fusion_(fusion::GlobalMap((options_.validate(), options_.global_map))) {
   if (!options_.state_dir.empty()) {
     recover_state();  // joins the first robot itself when the state is new
   } else if (options_.first_robot) {
-    record_fusions(map_.join_robot(*options_.first_robot, Pose2()), 0.0);  // L = W (docs/design.md §5)
+    fusion_.join_first_robot(*options_.first_robot);
   }
   if (options_.first_robot) seqs_[*options_.first_robot];
-  view_ = make_view();
+  view_ = fusion_.view();
 
   subscriptions_.push_back(bus_.subscribe(
       channels_.local_map(), [this](const std::string&, const void* data, std::size_t size) { on_local_map(data, size); }));
@@ -308,18 +300,15 @@ void ServerNode::fuse_task(LocalMapSnapshot snapshot, Clock::time_point arrived)
   outcome->robot_id = snapshot.robot_id;
   outcome->seq = snapshot.seq;
   try {
-    const std::vector<fusion::FusionReport> reports = map_.fuse(snapshot);
-    book_.add(snapshot);  // only what the map accepted
-    latest_utime_ = std::max(latest_utime_, snapshot.last_utime);
-    record_fusions(reports, wait_ms);
+    const std::vector<fusion::FusionReport> reports = fusion_.fuse(snapshot, wait_ms);
     for (const auto& r : reports) outcome->fused.emplace_back(r.robot_id, r.seq);
-    outcome->queued_in_map = map_.is_queued(snapshot.robot_id, snapshot.seq);
+    outcome->queued_in_map = fusion_.map().is_queued(snapshot.robot_id, snapshot.seq);
   } catch (const fusion::InvalidInput& e) {
     outcome->rejection = runtime::Rejection{reason_of(e.reason()), e.what()};
   } catch (const std::invalid_argument& e) {  // from below the fusion's own checks: never fatal
     outcome->rejection = runtime::Rejection{runtime::RejectReason::kOutOfRange, e.what()};
   }
-  outcome->view = make_view();
+  outcome->view = fusion_.view();
   post_outcome(std::move(outcome));
 }
 
@@ -330,18 +319,14 @@ void ServerNode::sighting_task(const fusion::RobotSighting& sighting, Clock::tim
   outcome->robot_id = sighting.observed_id;
   outcome->sighting = sighting;
   try {
-    const fusion::SightingResult result = map_.add_sighting(sighting);
-    record_fusions(result.fused, wait_ms);
+    const fusion::SightingResult result = fusion_.add_sighting(sighting, wait_ms);
     for (const auto& r : result.fused) outcome->fused.emplace_back(r.robot_id, r.seq);
-    sightings_.push_back({sighting, mission::sighting_status_name(result.status)});
-  } catch (const fusion::InvalidInput& e) {
+  } catch (const fusion::InvalidInput& e) {  // recorded as rejected
     outcome->rejection = runtime::Rejection{reason_of(e.reason()), e.what()};
-    sightings_.push_back({sighting, "rejected"});
   } catch (const std::invalid_argument& e) {  // from below the fusion's own checks: never fatal
     outcome->rejection = runtime::Rejection{runtime::RejectReason::kOutOfRange, e.what()};
-    sightings_.push_back({sighting, "rejected"});
   }
-  outcome->view = make_view();
+  outcome->view = fusion_.view();
   post_outcome(std::move(outcome));
 }
 
@@ -354,35 +339,27 @@ void ServerNode::recover_state() {
   Recovery rec = store_->recover();
   if (rec.state) {
     ServerState& st = *rec.state;
-    if (!fusion::same_config(st.map.config(), options_.global_map)) {
+    if (!fusion::same_config(st.fusion.map().config(), options_.global_map)) {
       throw StateError("the state in " + options_.state_dir.string() +
                        " was made with another global_map configuration; start with the same --config, or use a "
                        "new --state directory");
     }
-    map_ = std::move(st.map);
-    book_ = std::move(st.book);
-    fusions_ = std::move(st.fusions);
-    sightings_ = std::move(st.sightings);
-    fusion_ms_sum_ = st.fusion_ms_sum;
-    last_covariance_ok_ = st.last_covariance_ok;
-    covariance_always_ok_ = st.covariance_always_ok;
-    last_min_pivot_ = st.last_min_pivot;
-    latest_utime_ = st.latest_utime;
+    fusion_ = std::move(st.fusion);
     taken_high_water_ = std::move(st.taken_high_water);
     applied_lsn_ = rec.snapshot_lsn;
     recovery_.from = rec.snapshot_file;
   } else {
-    if (options_.first_robot) record_fusions(map_.join_robot(*options_.first_robot, Pose2()), 0.0);  // L = W
+    if (options_.first_robot) fusion_.join_first_robot(*options_.first_robot);
     recovery_.from = rec.fresh ? "new" : "journal";
   }
   recovery_.snapshot_lsn = rec.snapshot_lsn;
   recovery_.problems = rec.problems;
   // The loop side's bookkeeping: every local map in the book was fused or
   // queued (acked), every recorded sighting was received.
-  for (const auto& [robot_id, maps] : book_.shipped()) {
+  for (const auto& [robot_id, maps] : fusion_.book().shipped()) {
     for (const auto& entry : maps) seqs_[robot_id].applied.insert(entry.first);
   }
-  for (const SightingRecord& r : sightings_) {
+  for (const SightingRecord& r : fusion_.records().sightings) {
     sightings_answered_.insert({r.sighting.utime, r.sighting.observer_id, r.sighting.observed_id});
   }
   for (const JournalRecord& r : rec.records) {
@@ -395,7 +372,7 @@ void ServerNode::recover_state() {
   store_->start(rec, applied_lsn_, encode_state());
   last_snapshot_ = Clock::now();
   recovery_.lsn = applied_lsn_;
-  recovery_.fusions = static_cast<std::int64_t>(fusions_.size());
+  recovery_.fusions = static_cast<std::int64_t>(fusion_.records().fusions.size());
   recovery_.ms = ms_since(started);
 
   std::cerr << "lmf-server: state " << options_.state_dir << ": ";
@@ -406,7 +383,7 @@ void ServerNode::recover_state() {
                                                  : std::string("the journal alone"))
               << " + " << rec.records.size() << " journal records (" << recovery_.replayed_local_maps
               << " local maps, " << recovery_.replayed_sightings << " sightings): lsn " << recovery_.lsn << ", "
-              << recovery_.fusions << " fusions, " << map_.counts().segments << " segments, in " << recovery_.ms
+              << recovery_.fusions << " fusions, " << fusion_.map().counts().segments << " segments, in " << recovery_.ms
               << " ms\n";
   }
   for (const std::string& p : recovery_.problems) std::cerr << "lmf-server: state: PROBLEM: " << p << '\n';
@@ -430,7 +407,9 @@ void ServerNode::replay(const JournalRecord& record) {
     ++recovery_.replayed_local_maps;
     fuse_task(std::move(decoded.value()), Clock::now());
     // Applied now (its outcome, and the FUSED/QUEUED ack, follow on the loop).
-    if (map_.has_fused(robot_id, seq) || map_.is_queued(robot_id, seq)) seqs_[robot_id].applied.insert(seq);
+    if (fusion_.map().has_fused(robot_id, seq) || fusion_.map().is_queued(robot_id, seq)) {
+      seqs_[robot_id].applied.insert(seq);
+    }
   } else if (record.channel == channels_.sighting()) {
     auto decoded = runtime::decode<fusion::RobotSighting>(record.data.data(), size, options_.limits);
     if (!decoded) {
@@ -448,8 +427,7 @@ void ServerNode::replay(const JournalRecord& record) {
 }
 
 std::string ServerNode::encode_state() const {
-  return encode_server_state(map_, book_, fusions_, sightings_, fusion_ms_sum_, last_covariance_ok_,
-                             covariance_always_ok_, last_min_pivot_, latest_utime_, taken_high_water_);
+  return encode_server_state(fusion_, taken_high_water_);
 }
 
 void ServerNode::after_task(std::int64_t lsn, const std::optional<runtime::auth::SignedBy>& signer) {
@@ -475,7 +453,8 @@ void ServerNode::snapshot_now(bool at_stop) {
   last_snapshot_ = Clock::now();
   encode_ms_max_ = std::max(encode_ms_max_, encode_ms);
   std::ostringstream note;
-  note << "; " << fusions_.size() << " fusions, " << map_.counts().segments << " segments, encoded in " << encode_ms
+  note << "; " << fusion_.records().fusions.size() << " fusions, " << fusion_.map().counts().segments
+       << " segments, encoded in " << encode_ms
        << " ms on the fusion worker";
   if (at_stop) {
     if (store_->write_snapshot(applied_lsn_, payload)) {
@@ -495,90 +474,9 @@ void ServerNode::post_outcome(std::shared_ptr<Outcome> outcome) {
   });
 }
 
-void ServerNode::record_fusions(const std::vector<fusion::FusionReport>& reports, double queue_wait_ms) {
-  for (const auto& r : reports) {
-    fusions_.push_back({r, queue_wait_ms});
-    fusion_ms_sum_ += r.time.total_s * 1e3;
-    last_covariance_ok_ = mission::covariance_ok(r);
-    covariance_always_ok_ = covariance_always_ok_ && last_covariance_ok_;
-    // The eigenvalue when the check computed one (it decides: FusionReport::covariance_ok).
-    if (r.min_eigenvalue) {
-      last_min_pivot_ = r.min_eigenvalue;
-    } else if (r.min_ldlt_pivot) {
-      last_min_pivot_ = r.min_ldlt_pivot;
-    }
-  }
-}
-
-MapView ServerNode::make_view() const {
-  MapView v;
-  v.counts = map_.counts();
-  v.fusion_count = static_cast<std::int64_t>(fusions_.size());
-  v.latest_utime = latest_utime_;
-  v.frames.utime = latest_utime_;
-  v.frames.fusion_count = v.fusion_count;
-  for (fusion::CorrectedFrame f : map_.corrected_frames()) {
-    f.covariance = 0.5 * (f.covariance + f.covariance.transpose());
-    v.frames.frames.push_back(f);
-  }
-  for (const fusion::SegmentView& s : map_.segments()) {
-    v.endpoints.push_back({static_cast<float>(s.start_W.x()), static_cast<float>(s.start_W.y()),
-                           static_cast<float>(s.end_W.x()), static_cast<float>(s.end_W.y())});
-  }
-  if (!fusions_.empty()) {
-    v.last_fusion_ms = fusions_.back().report.time.total_s * 1e3;
-    v.mean_fusion_ms = fusion_ms_sum_ / static_cast<double>(fusions_.size());
-  }
-  v.covariance_ok = last_covariance_ok_;
-  v.min_pivot = last_min_pivot_;
-  return v;
-}
-
 bool ServerNode::write_outputs(const LoopSnapshot& loop_side) const {
   try {
-    std::filesystem::create_directories(options_.out_dir);
-    // trajectories/robotN.txt, trajectory.txt (all robots, time order), map.json, map.svg:
-    // lmf-offline's writers, with the robots named as in a simulated mission.
-    std::map<std::string, std::vector<StampedPose>> trajectories;
-    for (auto& [robot_id, poses] : book_.final_trajectories(map_)) {
-      trajectories[trajectory_name(robot_id)] = std::move(poses);
-    }
-    mission::write_trajectories(options_.out_dir, trajectories);
-    fusion::MapSvgOptions svg;
-    svg.graph = options_.map_svg_graph;
-    mission::write_map_files(options_.out_dir, map_, trajectories, svg);
-
-    json report;
-    report["source"] = "lmf-server";
-    report["map"] = mission::map_counts_json(map_.counts());
-    report["global_covariance_always_ok"] = covariance_always_ok_;
-    std::vector<double> fusion_ms;
-    std::vector<double> wait_ms;
-    json fusions = json::array();
-    for (const FusionRecord& f : fusions_) {
-      fusions.push_back(report_json(f.report, f.queue_wait_ms));
-      fusion_ms.push_back(f.report.time.total_s * 1e3);
-      wait_ms.push_back(f.queue_wait_ms);
-    }
-    report["fusion_timing"] = mission::timing_json(mission::timing_stats(std::move(fusion_ms)));
-    report["queue_wait_timing"] = mission::timing_json(mission::timing_stats(std::move(wait_ms)));
-    report["fusions"] = std::move(fusions);
-    json sightings = json::array();
-    for (const SightingRecord& s : sightings_) {
-      sightings.push_back(mission::sighting_json(s.sighting.utime, s.sighting.observer_id, s.sighting.observed_id,
-                                                 s.status.c_str()));
-    }
-    report["sightings"] = std::move(sightings);
-    json robots = json::array();
-    for (int robot_id : map_.robots()) {
-      std::size_t fused = 0;
-      for (const FusionRecord& f : fusions_) fused += f.report.robot_id == robot_id ? 1 : 0;
-      const auto t = trajectories.find(trajectory_name(robot_id));
-      robots.push_back({{"robot_id", robot_id},
-                        {"local_maps_fused", fused},
-                        {"trajectory_poses", t == trajectories.end() ? 0 : t->second.size()}});
-    }
-    report["robots"] = std::move(robots);
+    json report = fusion_.write_outputs(options_.out_dir, options_.map_svg_graph);
     const ServerStats& s = loop_side.stats;
     report["messages"] = {{"local_maps_received", s.local_maps_received},
                           {"sightings_received", s.sightings_received},
@@ -640,7 +538,7 @@ void ServerNode::request_write() {
         write_outputs(loop_side);
         auto outcome = std::make_shared<Outcome>();
         outcome->kind = Outcome::Kind::kWrite;
-        outcome->view = make_view();
+        outcome->view = fusion_.view();
         post_outcome(std::move(outcome));
       },
       FusionWorker::Bound::kUnbounded);

@@ -24,9 +24,10 @@
 // one already answered (also counted stale_sequence); a repeat still waiting
 // in the worker gets RECEIVED again.
 //
-// Ownership across threads: the GlobalMap, the TrajectoryBook and the fusion
-// records belong to the worker thread (and to the caller of shutdown() once the
-// worker is joined); the loop thread never touches them. After each task the
+// Ownership across threads: the FusionContext (fusion_context.hpp: the
+// GlobalMap, the TrajectoryBook, the fusion records, the outputs) belongs to the
+// worker thread (and to the caller of shutdown() once the worker is joined); the
+// loop thread never touches it. After each task the
 // worker posts a MapView (counts, corrected frames, segment end points, timing)
 // back to the loop with EventLoop::post; everything published comes from it.
 //
@@ -61,6 +62,7 @@
 #include <utility>
 #include <vector>
 
+#include "fusion_server/fusion_context.hpp"
 #include "fusion_server/fusion_worker.hpp"
 #include "fusion_server/state_store.hpp"
 #include "lmf/fusion/global_map.hpp"
@@ -97,19 +99,6 @@ struct ServerOptions {
 
   // Throws std::invalid_argument naming the bad field.
   void validate() const;
-};
-
-// What the loop thread knows of the map: a copy made by the worker after each task.
-struct MapView {
-  fusion::MapCounts counts;
-  std::int64_t fusion_count = 0;
-  std::int64_t latest_utime = 0;  // newest local map time fused (data time, us)
-  runtime::CorrectedFrames frames;
-  std::vector<std::array<float, 4>> endpoints;  // x1 y1 x2 y2 in W, m
-  double last_fusion_ms = 0.0;
-  double mean_fusion_ms = 0.0;
-  bool covariance_ok = true;                    // the last fusion's health check
-  std::optional<double> min_pivot;              // of the last fusion (LDLT pivot or eigenvalue)
 };
 
 struct ServerStats {
@@ -175,7 +164,7 @@ class ServerNode {
   const ServerOptions& options() const { return options_; }
   // The GlobalMap once shutdown() joined the worker (nullptr before): for
   // tests and tools that compare the final map.
-  const fusion::GlobalMap* map_after_shutdown() const { return stopped_ ? &map_ : nullptr; }
+  const fusion::GlobalMap* map_after_shutdown() const { return stopped_ ? &fusion_.map() : nullptr; }
   // The durable state (nullptr without state_dir) and what recovery found.
   const StateStore* state_store() const { return store_.get(); }
   const StateRecovery& recovery() const { return recovery_; }
@@ -200,7 +189,6 @@ class ServerNode {
   // Worker side.
   void fuse_task(LocalMapSnapshot snapshot, std::chrono::steady_clock::time_point arrived);
   void sighting_task(const fusion::RobotSighting& sighting, std::chrono::steady_clock::time_point arrived);
-  void record_fusions(const std::vector<fusion::FusionReport>& reports, double queue_wait_ms);
   // Durable state: load + replay (constructor), after each journaled task, snapshots.
   void recover_state();
   void replay(const JournalRecord& record);
@@ -216,7 +204,6 @@ class ServerNode {
   // synchronously, dirty or not.
   void snapshot_now(bool at_stop = false);
   std::string encode_state() const;
-  MapView make_view() const;
   bool write_outputs(const LoopSnapshot& loop_side) const;
 
   void publish_ack(int robot_id, std::int64_t seq, runtime::LocalMapAck::Status status);
@@ -233,15 +220,7 @@ class ServerNode {
   ServerOptions options_;
 
   // ---- worker side (see the header comment) ----
-  fusion::GlobalMap map_;
-  mission::TrajectoryBook book_;
-  std::vector<FusionRecord> fusions_;
-  std::vector<SightingRecord> sightings_;
-  double fusion_ms_sum_ = 0.0;
-  bool last_covariance_ok_ = true;
-  bool covariance_always_ok_ = true;
-  std::optional<double> last_min_pivot_;
-  std::int64_t latest_utime_ = 0;
+  FusionContext fusion_;
   std::unique_ptr<StateStore> store_;  // its append() is called from the loop thread
   std::int64_t applied_lsn_ = 0;       // last journal record applied
   runtime::auth::HighWater taken_high_water_;  // per signer, the highest seq of an input applied

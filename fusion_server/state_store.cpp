@@ -167,15 +167,15 @@ ParsedJournal parse_journal(const std::string& bytes) {
 // ---------------------------------------------------------------------------
 // Server state payload
 
-std::string encode_server_state(const fusion::GlobalMap& map, const mission::TrajectoryBook& book,
-                                const std::vector<FusionRecord>& fusions, const std::vector<SightingRecord>& sightings,
-                                double fusion_ms_sum, bool last_covariance_ok, bool covariance_always_ok,
-                                const std::optional<double>& last_min_pivot, std::int64_t latest_utime,
-                                const runtime::auth::HighWater& taken_high_water) {
+std::string encode_server_state(const FusionContext& fusion, const runtime::auth::HighWater& taken_high_water) {
+  const fusion::GlobalMap& map = fusion.map();
+  const mission::TrajectoryBook& book = fusion.book();
+  const FusionRecords& records = fusion.records();
   std::string out;
   // P's lower triangle dominates: one allocation instead of a doubling series of copies.
   const auto n = static_cast<std::size_t>(map.state().dimension());
-  out.reserve(n * (n + 1) / 2 * sizeof(double) + map.state().entities().size() * 64 + fusions.size() * 256 + 65536);
+  out.reserve(n * (n + 1) / 2 * sizeof(double) + map.state().entities().size() * 64 +
+              records.fusions.size() * 256 + 65536);
   ArchiveWriter w(out);
   fusion::write_global_map(w, map);
   w.count(book.shipped().size());
@@ -192,22 +192,22 @@ std::string encode_server_state(const fusion::GlobalMap& map, const mission::Tra
       }
     }
   }
-  w.count(fusions.size());
-  for (const FusionRecord& f : fusions) {
+  w.count(records.fusions.size());
+  for (const FusionRecord& f : records.fusions) {
     fusion::write_fusion_report(w, f.report);
     w.f64(f.queue_wait_ms);
   }
-  w.count(sightings.size());
-  for (const SightingRecord& s : sightings) {
+  w.count(records.sightings.size());
+  for (const SightingRecord& s : records.sightings) {
     fusion::write_sighting(w, s.sighting);
     w.text(s.status);
   }
-  w.f64(fusion_ms_sum);
-  w.boolean(last_covariance_ok);
-  w.boolean(covariance_always_ok);
-  w.boolean(last_min_pivot.has_value());
-  w.f64(last_min_pivot.value_or(0.0));
-  w.i64(latest_utime);
+  w.f64(records.fusion_ms_sum);
+  w.boolean(records.last_covariance_ok);
+  w.boolean(records.covariance_always_ok);
+  w.boolean(records.last_min_pivot.has_value());
+  w.f64(records.last_min_pivot.value_or(0.0));
+  w.i64(records.latest_utime);
   w.count(taken_high_water.size());
   for (const auto& [principal, seq] : taken_high_water) {
     w.text(principal);
@@ -218,7 +218,10 @@ std::string encode_server_state(const fusion::GlobalMap& map, const mission::Tra
 
 ServerState decode_server_state(const std::string& payload) {
   ArchiveReader r(payload.data(), payload.size(), "server state");
-  ServerState s{fusion::read_global_map(r), {}, {}, {}, 0.0, true, true, std::nullopt, 0, {}};
+  fusion::GlobalMap map = fusion::read_global_map(r);
+  mission::TrajectoryBook book;
+  FusionRecords records;
+  runtime::auth::HighWater taken_high_water;
   const std::size_t robots = r.count(12);
   for (std::size_t i = 0; i < robots; ++i) {
     const int robot_id = r.i32();
@@ -233,34 +236,34 @@ ServerState decode_server_state(const std::string& payload) {
         p.utime = r.i64();
         p.x_LR = r.pose();
       }
-      s.book.add(shipped);
+      book.add(shipped);
     }
   }
-  s.fusions.resize(r.count(64));
-  for (FusionRecord& f : s.fusions) {
+  records.fusions.resize(r.count(64));
+  for (FusionRecord& f : records.fusions) {
     f.report = fusion::read_fusion_report(r);
     f.queue_wait_ms = r.f64();
   }
-  s.sightings.resize(r.count(64));
-  for (SightingRecord& rec : s.sightings) {
+  records.sightings.resize(r.count(64));
+  for (SightingRecord& rec : records.sightings) {
     rec.sighting = fusion::read_sighting(r);
     rec.status = r.text();
   }
-  s.fusion_ms_sum = r.f64();
-  s.last_covariance_ok = r.boolean();
-  s.covariance_always_ok = r.boolean();
+  records.fusion_ms_sum = r.f64();
+  records.last_covariance_ok = r.boolean();
+  records.covariance_always_ok = r.boolean();
   const bool has_pivot = r.boolean();
   const double pivot = r.f64();
-  if (has_pivot) s.last_min_pivot = pivot;
-  s.latest_utime = r.i64();
+  if (has_pivot) records.last_min_pivot = pivot;
+  records.latest_utime = r.i64();
   const std::size_t signers = r.count(9);
   for (std::size_t i = 0; i < signers; ++i) {
     std::string principal = r.text();
     if (!runtime::auth::is_valid_principal(principal)) r.fail("corrupt: invalid principal in the replay high-water marks");
-    s.taken_high_water[std::move(principal)] = r.u64();
+    taken_high_water[std::move(principal)] = r.u64();
   }
   if (r.remaining() != 0) r.fail("corrupt: " + std::to_string(r.remaining()) + " bytes after the server state");
-  return s;
+  return ServerState{FusionContext(std::move(map), std::move(book), std::move(records)), std::move(taken_high_water)};
 }
 
 // ---------------------------------------------------------------------------

@@ -71,6 +71,7 @@
 #include <thread>
 #include <vector>
 
+#include "fusion_server/fusion_context.hpp"
 #include "lmf/fusion/global_map.hpp"
 #include "lmf/mission/trajectory_book.hpp"
 #include "runtime/auth.hpp"
@@ -95,37 +96,15 @@ class StateError : public std::runtime_error {
 };
 
 // One fusion as recorded for report.json.
-struct FusionRecord {
-  fusion::FusionReport report;
-  double queue_wait_ms = 0.0;  // from arrival to the start of the task that fused it
-};
-
-struct SightingRecord {
-  fusion::RobotSighting sighting;
-  std::string status;
-};
-
 // Everything the server keeps besides its loop-side counters.
 struct ServerState {
-  fusion::GlobalMap map;
-  mission::TrajectoryBook book;
-  std::vector<FusionRecord> fusions;
-  std::vector<SightingRecord> sightings;
-  double fusion_ms_sum = 0.0;
-  bool last_covariance_ok = true;
-  bool covariance_always_ok = true;
-  std::optional<double> last_min_pivot;
-  std::int64_t latest_utime = 0;
+  FusionContext fusion;
   runtime::auth::HighWater taken_high_water;  // empty unless signatures were verified
 };
 
 // The server state's bytes (the snapshot payload after the lsn) and back;
 // decode throws fusion::ArchiveError for anything malformed.
-std::string encode_server_state(const fusion::GlobalMap& map, const mission::TrajectoryBook& book,
-                                const std::vector<FusionRecord>& fusions, const std::vector<SightingRecord>& sightings,
-                                double fusion_ms_sum, bool last_covariance_ok, bool covariance_always_ok,
-                                const std::optional<double>& last_min_pivot, std::int64_t latest_utime,
-                                const runtime::auth::HighWater& taken_high_water);
+std::string encode_server_state(const FusionContext& fusion, const runtime::auth::HighWater& taken_high_water);
 ServerState decode_server_state(const std::string& payload);
 
 struct JournalRecord {

@@ -35,23 +35,17 @@ using lmf::fusion::GlobalMap;
 namespace synthetic = lmf::fusion::synthetic;
 
 struct World {
-  GlobalMap map;
-  lmf::mission::TrajectoryBook book;
-  std::vector<lmf::server::FusionRecord> fusions;
+  lmf::server::FusionContext fusion{GlobalMap()};
   std::mt19937 rng{2024};
   int cells = 0;
 
   void grow_to(int segments) {
-    while (map.counts().segments < segments) {
-      const lmf::LocalMapSnapshot s = synthetic::serpentine_growth_snapshot(cells, rng);
-      for (const auto& r : map.fuse(s)) fusions.push_back({r, 0.0});
-      book.add(s);
+    while (fusion.map().counts().segments < segments) {
+      fusion.fuse(synthetic::serpentine_growth_snapshot(cells, rng), 0.0);
       ++cells;
     }
   }
-  std::string payload() const {
-    return lmf::server::encode_server_state(map, book, fusions, {}, 0.0, true, true, std::nullopt, 0, {});
-  }
+  std::string payload() const { return lmf::server::encode_server_state(fusion, {}); }
 };
 
 // One map per size (each built from scratch: a benchmark may run alone).
@@ -86,8 +80,8 @@ void BM_EncodeServerState(benchmark::State& state) {
     bytes = p.size();
     benchmark::DoNotOptimize(p.data());
   }
-  state.counters["segments"] = w.map.counts().segments;
-  state.counters["state_dim"] = static_cast<double>(w.map.state().dimension());
+  state.counters["segments"] = w.fusion.map().counts().segments;
+  state.counters["state_dim"] = static_cast<double>(w.fusion.map().state().dimension());
   state.counters["MB"] = static_cast<double>(bytes) / 1e6;
 }
 BENCHMARK(BM_EncodeServerState)->Apply(sizes);
@@ -105,7 +99,7 @@ void BM_WriteSnapshot(benchmark::State& state) {
     store.append("LMF_LOCAL_MAP", payload.data(), 16, 0);
     if (!store.write_snapshot(++lsn, payload)) state.SkipWithError("snapshot not written");
   }
-  state.counters["segments"] = w.map.counts().segments;
+  state.counters["segments"] = w.fusion.map().counts().segments;
   state.counters["MB"] = static_cast<double>(payload.size()) / 1e6;
 }
 BENCHMARK(BM_WriteSnapshot)->Apply(sizes);
@@ -122,7 +116,7 @@ void BM_Recover(benchmark::State& state) {
   for (auto _ : state) {
     lmf::server::StateStore store(lmf::server::StateStoreOptions{dir});
     const lmf::server::Recovery rec = store.recover();
-    segments = rec.state->map.counts().segments;
+    segments = rec.state->fusion.map().counts().segments;
   }
   state.counters["segments"] = segments;
 }

@@ -67,19 +67,16 @@ std::vector<std::uint8_t> map_bytes(const LocalMapSnapshot& s) { return rt::enco
 
 // A server-state payload whose map has `fused` local maps of robot 0.
 std::string payload_with(int fused) {
-  lmf::fusion::GlobalMap map;
-  lmf::mission::TrajectoryBook book;
-  map.join_robot(0, Pose2());
-  for (int seq = 0; seq < fused; ++seq) {
-    map.fuse(make_map(0, seq));
-    book.add(make_map(0, seq));
-  }
-  return lmf::server::encode_server_state(map, book, {}, {}, 0.0, true, true, std::nullopt, 0, {});
+  lmf::server::FusionContext fusion{lmf::fusion::GlobalMap()};
+  fusion.join_first_robot(0);
+  for (int seq = 0; seq < fused; ++seq) fusion.fuse(make_map(0, seq), 0.0);
+  return lmf::server::encode_server_state(fusion, {});
 }
 
 int fused_in(const Recovery& r) {
-  const auto robot = r.state->book.shipped().find(0);
-  return robot == r.state->book.shipped().end() ? 0 : static_cast<int>(robot->second.size());
+  const auto& shipped = r.state->fusion.book().shipped();
+  const auto robot = shipped.find(0);
+  return robot == shipped.end() ? 0 : static_cast<int>(robot->second.size());
 }
 
 void append_maps(StateStore& store, std::int64_t from_seq, int count) {
@@ -293,17 +290,24 @@ TEST(StateStoreTest, ServerStatePayloadRoundTrips) {
   }
   std::vector<lmf::server::SightingRecord> sightings = {{make_sighting(0, 1, 7), "pending"}};
   const lmf::runtime::auth::HighWater high_water = {{"player", 1'700'000'000'000'123}, {"robot1", 42}};
-  const std::string bytes =
-      lmf::server::encode_server_state(map, book, fusions, sightings, 12.5, false, true, 0.25, 99, high_water);
+  lmf::server::FusionRecords records;
+  records.fusions = fusions;
+  records.sightings = sightings;
+  records.fusion_ms_sum = 12.5;
+  records.last_covariance_ok = false;
+  records.last_min_pivot = 0.25;
+  records.latest_utime = 99;
+  const lmf::server::FusionContext fusion(std::move(map), std::move(book), records);
+  const std::string bytes = lmf::server::encode_server_state(fusion, high_water);
   lmf::server::ServerState s = lmf::server::decode_server_state(bytes);
-  EXPECT_EQ(lmf::server::encode_server_state(s.map, s.book, s.fusions, s.sightings, s.fusion_ms_sum,
-                                             s.last_covariance_ok, s.covariance_always_ok, s.last_min_pivot,
-                                             s.latest_utime, s.taken_high_water),
-            bytes);
+  EXPECT_EQ(lmf::server::encode_server_state(s.fusion, s.taken_high_water), bytes);
   EXPECT_EQ(s.taken_high_water, high_water);
-  EXPECT_EQ(s.fusions.size(), 3u);
-  EXPECT_EQ(s.sightings[0].status, "pending");
-  EXPECT_EQ(s.latest_utime, 99);
+  EXPECT_EQ(s.fusion.records().fusions.size(), 3u);
+  EXPECT_EQ(s.fusion.records().sightings[0].status, "pending");
+  EXPECT_EQ(s.fusion.records().latest_utime, 99);
+  EXPECT_DOUBLE_EQ(s.fusion.records().fusion_ms_sum, 12.5);
+  EXPECT_FALSE(s.fusion.records().last_covariance_ok);
+  EXPECT_EQ(s.fusion.records().last_min_pivot, 0.25);
   EXPECT_THROW(lmf::server::decode_server_state(bytes.substr(0, bytes.size() - 3)), lmf::fusion::ArchiveError);
 }
 
