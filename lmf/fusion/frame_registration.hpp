@@ -16,7 +16,9 @@
 // Pure, thread-safe.
 #pragma once
 
+#include <concepts>
 #include <optional>
+#include <type_traits>
 #include <vector>
 
 #include <Eigen/Core>
@@ -53,6 +55,21 @@ struct FrameRegistrationConfig {
   // Throws std::invalid_argument naming the first bad field.
   void validate() const;
 };
+
+// f(name, field) for every field, with its configuration-file name, in the
+// map archive's order (see visit_fields(GlobalMapConfig&, F&&), global_map.hpp).
+template <class Config, class F>
+  requires std::same_as<std::remove_const_t<Config>, FrameRegistrationConfig>
+void visit_fields(Config& c, F&& f) {
+  f("enabled", c.enabled);
+  f("window_m", c.window_m);
+  f("window_rad", c.window_rad);
+  f("resolution_m", c.resolution_m);
+  f("min_score", c.min_score);
+  f("ambiguity_ratio", c.ambiguity_ratio);
+  f("min_constraint", c.min_constraint);
+  f("own_recent_maps", c.own_recent_maps);
+}
 
 // A segment: its frame (midpoint, x along it) and length.
 struct RegistrationSegment {

@@ -39,6 +39,8 @@
 // fill FusionReport::time and never used for a decision.
 #pragma once
 
+#include <array>
+#include <concepts>
 #include <cstdint>
 #include <deque>
 #include <map>
@@ -46,6 +48,7 @@
 #include <optional>
 #include <set>
 #include <stdexcept>
+#include <type_traits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -175,6 +178,44 @@ struct GlobalMapConfig {
   // Throws std::invalid_argument naming the first bad field.
   void validate() const;
 };
+
+// The names of HealthCheck in configuration files.
+inline constexpr std::array<std::pair<const char*, HealthCheck>, 4> kHealthCheckNames = {{
+    {"none", HealthCheck::kNone},
+    {"touched", HealthCheck::kTouched},
+    {"full_ldlt", HealthCheck::kFullLdlt},
+    {"full_eigen", HealthCheck::kFullEigen},
+}};
+
+// Every field of the config, declared once for the code that treats them all
+// alike: the JSON reader (lmf/mission/config_file.cpp), the map archive and
+// with it same_config (global_map_archive.hpp). f(name, field) for each field
+// with its configuration-file name, in the archive's order: a double, bool,
+// int or HealthCheck, and the FrameRegistrationConfig "registration" section,
+// whose own fields visit_fields(section, f) lists. A new field goes here and
+// in validate() (its requirement); its archive then needs a new version.
+template <class Config, class F>
+  requires std::same_as<std::remove_const_t<Config>, GlobalMapConfig>
+void visit_fields(Config& c, F&& f) {
+  f("alpha", c.alpha);
+  f("gate_angle_rad", c.gate_angle_rad);
+  f("gate_distance_m", c.gate_distance_m);
+  f("gate_gap_m", c.gate_gap_m);
+  f("gate_sigmas", c.gate_sigmas);
+  f("min_overlap_m", c.min_overlap_m);
+  f("careful_relative_tolerance", c.careful_relative_tolerance);
+  f("careful_absolute_floor", c.careful_absolute_floor);
+  f("snapshot_tolerance", c.snapshot_tolerance);
+  f("max_coordinate_m", c.max_coordinate_m);
+  f("local_map_covariance_scale", c.local_map_covariance_scale);
+  f("first_robot_defines_world", c.first_robot_defines_world);
+  f("health", c.health);
+  f("frame_history_per_robot", c.frame_history_per_robot);
+  f("footprint_radius_m", c.footprint_radius_m);
+  f("crossing_margin_m", c.crossing_margin_m);
+  f("crossing_max_angle_rad", c.crossing_max_angle_rad);
+  f("registration", c.registration);
+}
 
 // Wall-clock seconds per phase of one fusion (measurement only).
 struct PhaseTimes {

@@ -71,46 +71,35 @@ class GlobalMapArchive {
 //   flags       u8 any_joined (version 4 had a second u8 here, always 0)
 //   footprints  u64 count + (f64 x, f64 y) in the order added (0 when off)
 void GlobalMapArchive::write_config(ArchiveWriter& w, const GlobalMapConfig& c) {
-  for (const double v : {c.alpha, c.gate_angle_rad, c.gate_distance_m, c.gate_gap_m, c.gate_sigmas, c.min_overlap_m,
-                         c.careful_relative_tolerance, c.careful_absolute_floor, c.snapshot_tolerance,
-                         c.max_coordinate_m, c.local_map_covariance_scale}) {
-    w.f64(v);
-  }
-  w.boolean(c.first_robot_defines_world);
-  w.u8(static_cast<std::uint8_t>(c.health));
-  w.i32(c.frame_history_per_robot);
-  w.f64(c.footprint_radius_m);
-  w.f64(c.crossing_margin_m);
-  w.f64(c.crossing_max_angle_rad);
-  const FrameRegistrationConfig& g = c.registration;
-  w.boolean(g.enabled);
-  for (const double v : {g.window_m, g.window_rad, g.resolution_m, g.min_score, g.ambiguity_ratio, g.min_constraint}) {
-    w.f64(v);
-  }
-  w.i32(g.own_recent_maps);
+  // f64, u8 (bool, HealthCheck), i32, in visit_fields' order.
+  struct Write {
+    ArchiveWriter& w;
+    void operator()(const char*, double v) const { w.f64(v); }
+    void operator()(const char*, bool v) const { w.boolean(v); }
+    void operator()(const char*, int v) const { w.i32(v); }
+    void operator()(const char*, HealthCheck v) const { w.u8(static_cast<std::uint8_t>(v)); }
+    void operator()(const char*, const FrameRegistrationConfig& g) const { visit_fields(g, *this); }
+  };
+  visit_fields(c, Write{w});
 }
 
 GlobalMapConfig GlobalMapArchive::read_config(ArchiveReader& r) {
+  struct Read {
+    ArchiveReader& r;
+    void operator()(const char*, double& v) const { v = r.f64(); }
+    void operator()(const char*, bool& v) const { v = r.boolean(); }
+    void operator()(const char*, int& v) const { v = r.i32(); }
+    void operator()(const char* name, HealthCheck& v) const {
+      const std::uint8_t code = r.u8();
+      if (code > static_cast<std::uint8_t>(HealthCheck::kFullEigen)) {
+        r.fail(std::string("corrupt: ") + name + " " + std::to_string(code));
+      }
+      v = static_cast<HealthCheck>(code);
+    }
+    void operator()(const char*, FrameRegistrationConfig& g) const { visit_fields(g, *this); }
+  };
   GlobalMapConfig c;
-  for (double* v : {&c.alpha, &c.gate_angle_rad, &c.gate_distance_m, &c.gate_gap_m, &c.gate_sigmas, &c.min_overlap_m,
-                    &c.careful_relative_tolerance, &c.careful_absolute_floor, &c.snapshot_tolerance,
-                    &c.max_coordinate_m, &c.local_map_covariance_scale}) {
-    *v = r.f64();
-  }
-  c.first_robot_defines_world = r.boolean();
-  const std::uint8_t health = r.u8();
-  if (health > static_cast<std::uint8_t>(HealthCheck::kFullEigen)) r.fail("corrupt: health check " + std::to_string(health));
-  c.health = static_cast<HealthCheck>(health);
-  c.frame_history_per_robot = r.i32();
-  c.footprint_radius_m = r.f64();
-  c.crossing_margin_m = r.f64();
-  c.crossing_max_angle_rad = r.f64();
-  FrameRegistrationConfig& g = c.registration;
-  g.enabled = r.boolean();
-  for (double* v : {&g.window_m, &g.window_rad, &g.resolution_m, &g.min_score, &g.ambiguity_ratio, &g.min_constraint}) {
-    *v = r.f64();
-  }
-  g.own_recent_maps = r.i32();
+  visit_fields(c, Read{r});
   try {
     c.validate();
   } catch (const std::invalid_argument& e) {

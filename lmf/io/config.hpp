@@ -18,7 +18,9 @@
 // Comments (`//`, `/* */`) are allowed in files. Not thread-safe.
 #pragma once
 
+#include <array>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -97,7 +99,13 @@ class JsonReader {
   // A string that must be one of `choices` (name -> value), e.g. an enum.
   template <typename E>
   bool read_choice(const std::string& key, E& value,
-                   std::initializer_list<std::pair<const char*, E>> choices);
+                   std::initializer_list<std::pair<const char*, E>> choices) {
+    return read_choice_in(key, value, choices);
+  }
+  template <typename E, std::size_t N>
+  bool read_choice(const std::string& key, E& value, const std::array<std::pair<const char*, E>, N>& choices) {
+    return read_choice_in(key, value, choices);
+  }
 
   // Nested objects. The child is owned by this reader and checked by finish().
   // section() throws when the key is absent or not an object; optional_section()
@@ -123,6 +131,8 @@ class JsonReader {
 
   template <typename T>
   void convert(const std::string& key, const nlohmann::json& j, T& out) const;
+  template <typename E, typename Choices>
+  bool read_choice_in(const std::string& key, E& value, const Choices& choices);
   void check(const std::string& key, double v, const Requirement& requirement) const;
   void collect_unused(std::vector<std::string>& out) const;
 
@@ -236,9 +246,8 @@ T JsonReader::required(const std::string& key, const Requirement& requirement) {
   return value;
 }
 
-template <typename E>
-bool JsonReader::read_choice(const std::string& key, E& value,
-                             std::initializer_list<std::pair<const char*, E>> choices) {
+template <typename E, typename Choices>
+bool JsonReader::read_choice_in(const std::string& key, E& value, const Choices& choices) {
   std::string name;
   if (!read(key, name)) return false;
   std::string list;

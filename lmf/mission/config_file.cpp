@@ -5,37 +5,19 @@
 namespace lmf::mission {
 
 void read_config(io::JsonReader& r, fusion::GlobalMapConfig& c) {
-  r.read("alpha", c.alpha);
-  r.read("local_map_covariance_scale", c.local_map_covariance_scale);
-  r.read("gate_angle_rad", c.gate_angle_rad);
-  r.read("gate_distance_m", c.gate_distance_m);
-  r.read("gate_gap_m", c.gate_gap_m);
-  r.read("gate_sigmas", c.gate_sigmas);
-  r.read("min_overlap_m", c.min_overlap_m);
-  r.read("careful_relative_tolerance", c.careful_relative_tolerance);
-  r.read("careful_absolute_floor", c.careful_absolute_floor);
-  r.read("snapshot_tolerance", c.snapshot_tolerance);
-  r.read("max_coordinate_m", c.max_coordinate_m);
-  r.read("first_robot_defines_world", c.first_robot_defines_world);
-  r.read_choice("health", c.health,
-                {{"none", fusion::HealthCheck::kNone},
-                 {"touched", fusion::HealthCheck::kTouched},
-                 {"full_ldlt", fusion::HealthCheck::kFullLdlt},
-                 {"full_eigen", fusion::HealthCheck::kFullEigen}});
-  r.read("frame_history_per_robot", c.frame_history_per_robot);
-  r.read("footprint_radius_m", c.footprint_radius_m);
-  r.read("crossing_margin_m", c.crossing_margin_m);
-  r.read("crossing_max_angle_rad", c.crossing_max_angle_rad);
-  if (io::JsonReader* g = r.optional_section("registration")) {
-    g->read("enabled", c.registration.enabled);
-    g->read("window_m", c.registration.window_m);
-    g->read("window_rad", c.registration.window_rad);
-    g->read("resolution_m", c.registration.resolution_m);
-    g->read("min_score", c.registration.min_score);
-    g->read("ambiguity_ratio", c.registration.ambiguity_ratio);
-    g->read("min_constraint", c.registration.min_constraint);
-    g->read("own_recent_maps", c.registration.own_recent_maps);
-  }
+  struct Read {
+    io::JsonReader& r;
+    void operator()(const char* name, double& v) const { r.read(name, v); }
+    void operator()(const char* name, bool& v) const { r.read(name, v); }
+    void operator()(const char* name, int& v) const { r.read(name, v); }
+    void operator()(const char* name, fusion::HealthCheck& v) const {
+      r.read_choice(name, v, fusion::kHealthCheckNames);
+    }
+    void operator()(const char* name, fusion::FrameRegistrationConfig& g) const {
+      if (io::JsonReader* section = r.optional_section(name)) fusion::visit_fields(g, Read{*section});
+    }
+  };
+  fusion::visit_fields(c, Read{r});
 }
 
 void read_config(io::JsonReader& r, SightingNoise& c) {

@@ -5,6 +5,9 @@
 #include <string>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "lmf/fusion/global_map_archive.hpp"
 
 namespace lmf::mission {
 namespace {
@@ -18,6 +21,62 @@ TEST(MissionConfigFile, EveryShippedConfigLoads) {
     ++loaded;
   }
   EXPECT_GE(loaded, 1);
+}
+
+// A valid value other than the default, written to the JSON object j too.
+struct Nudge {
+  nlohmann::json& j;
+  void operator()(const char* name, double& v) const { j[name] = v = (v == 0.0 ? 1e-3 : v * 1.001); }
+  void operator()(const char* name, bool& v) const { j[name] = v = !v; }
+  void operator()(const char* name, int& v) const { j[name] = v = v + 1; }
+  void operator()(const char* name, fusion::HealthCheck& v) const {
+    v = v == fusion::HealthCheck::kNone ? fusion::HealthCheck::kTouched : fusion::HealthCheck::kNone;
+    for (const auto& [choice, value] : fusion::kHealthCheckNames) {
+      if (value == v) j[name] = choice;
+    }
+  }
+  void operator()(const char* name, fusion::FrameRegistrationConfig& g) const {
+    nlohmann::json section = nlohmann::json::object();
+    fusion::visit_fields(g, Nudge{section});
+    j[name] = section;
+  }
+};
+
+// Nudges only the k-th field (counting into sections); `at` counts every field.
+struct NudgeOne {
+  int k = 0;
+  int at = 0;
+  void operator()(const char*, fusion::FrameRegistrationConfig& g) { fusion::visit_fields(g, *this); }
+  template <class T>
+  void operator()(const char* name, T& v) {
+    if (at++ != k) return;
+    nlohmann::json unused = nlohmann::json::object();
+    Nudge{unused}(name, v);
+  }
+};
+
+// Every field of GlobalMapConfig, as visit_fields lists it: written to JSON
+// changed from its default, read back by the config reader, and each one seen
+// by same_config (the archive's comparison).
+TEST(MissionConfigFile, EveryGlobalMapFieldIsReadAndCompared) {
+  fusion::GlobalMapConfig nudged;
+  nlohmann::json global = nlohmann::json::object();
+  fusion::visit_fields(nudged, Nudge{global});
+  ASSERT_NO_THROW(nudged.validate());
+  const MissionConfig read = parse_mission_config(nlohmann::json{{"global_map", global}}.dump());
+  EXPECT_TRUE(fusion::same_config(read.global_map, nudged));
+  EXPECT_FALSE(fusion::same_config(read.global_map, fusion::GlobalMapConfig{}));
+
+  fusion::GlobalMapConfig counted;
+  NudgeOne count{-1};
+  fusion::visit_fields(counted, count);
+  EXPECT_GE(count.at, 25);
+  for (int k = 0; k < count.at; ++k) {
+    fusion::GlobalMapConfig one;
+    NudgeOne nudge{k};
+    fusion::visit_fields(one, nudge);
+    EXPECT_FALSE(fusion::same_config(one, fusion::GlobalMapConfig{})) << "field " << k;
+  }
 }
 
 TEST(MissionConfigFile, ReadsSectionsAndKeepsDefaults) {
