@@ -30,6 +30,7 @@
 #include <Eigen/Core>
 
 #include "lmf/agent_status_t.hpp"
+#include "lmf/common/input_bounds.hpp"
 #include "lmf/corrected_frames_t.hpp"
 #include "lmf/geometry/pose2.hpp"
 #include "lmf/global_map_t.hpp"
@@ -58,9 +59,9 @@ struct DecodeLimits {
   int max_robots = 256;                      // per corrected_frames_t and mission_end_t
   int max_scan_poses = 65536;                // per local map (a parked robot keeps scanning)
   // |x|, |y| of every pose beyond this are garbage (out_of_range), as for the
-  // GlobalMap (GlobalMapConfig::max_coordinate_m): a finite but absurd
-  // odometry jump would otherwise overflow an agent's covariance.
-  double max_coordinate_m = 1e6;
+  // GlobalMap (GlobalMapConfig::max_coordinate_m, the same default): a finite
+  // but absurd odometry jump would otherwise overflow an agent's covariance.
+  double max_coordinate_m = kDefaultMaxCoordinateM;
 };
 
 // Tolerances of the covariance checks (relative to the matrix's own scale).

@@ -55,6 +55,7 @@
 
 #include <Eigen/Core>
 
+#include "lmf/common/input_bounds.hpp"
 #include "lmf/fusion/corrected_frame.hpp"
 #include "lmf/fusion/environment_graph.hpp"
 #include "lmf/fusion/fusion_equations.hpp"
@@ -143,8 +144,8 @@ struct GlobalMapConfig {
   double careful_absolute_floor = 1e-14;
   // Snapshot validation: symmetry and PSD within tolerance · max(1, max |P_ii|).
   double snapshot_tolerance = 1e-9;
-  // Coordinates beyond this (m) are rejected as garbage.
-  double max_coordinate_m = 1e6;
+  // Coordinates beyond this (m) are rejected as garbage (as on the wire).
+  double max_coordinate_m = kDefaultMaxCoordinateM;
   // The first local map from any robot, while no robot has joined, joins that
   // robot with L = W (zero covariance).
   bool first_robot_defines_world = true;
