@@ -629,7 +629,7 @@ Checked<CorrectedFrames> from_message(const lmf::corrected_frames_t& msg, const 
       return reject(RejectReason::kOutOfRange, what + ": robot " + to_string(frame.robot_id) + " listed twice");
     }
     // The wire names the last local map fused; the frame is where the next one begins.
-    if (msg.last_applied_seq[i] < -1) {
+    if (msg.last_applied_seq[i] < -1 || msg.last_applied_seq[i] == std::numeric_limits<std::int64_t>::max()) {
       return reject(RejectReason::kOutOfRange, what + ".last_applied_seq = " + to_string(msg.last_applied_seq[i]));
     }
     frame.map_seq = msg.last_applied_seq[i] + 1;
@@ -653,6 +653,10 @@ Checked<lmf::corrected_frames_t> to_message(const CorrectedFrames& frames, const
     if (auto r = check_covariance(frame.covariance, "CorrectedFrame.covariance of robot " + to_string(frame.robot_id),
                                   tolerance)) {
       return *r;
+    }
+    if (frame.map_seq < 0) {
+      return reject(RejectReason::kOutOfRange, "CorrectedFrame.map_seq = " + to_string(frame.map_seq) + " of robot " +
+                                                   to_string(frame.robot_id));
     }
     msg.robot_ids.push_back(frame.robot_id);
     msg.last_applied_seq.push_back(frame.map_seq - 1);

@@ -225,6 +225,13 @@ TEST(Convert, CorrectedFramesRoundTrip) {
   ASSERT_TRUE(msg.ok()) << msg.rejection().describe();
   // The wire names the last local map fused, the core the map that begins at x_WL.
   EXPECT_EQ(msg.value().last_applied_seq, (std::vector<std::int64_t>{4, -1}));
+  // Neither direction overflows (found by the fuzzer under UBSan).
+  auto last = msg.value();
+  last.last_applied_seq[0] = std::numeric_limits<std::int64_t>::max();
+  EXPECT_EQ(reason_of(rt::from_message(last)), RejectReason::kOutOfRange);
+  auto negative = frames;
+  negative.frames[0].map_seq = std::numeric_limits<std::int64_t>::min();
+  EXPECT_EQ(reason_of(rt::to_message(negative)), RejectReason::kOutOfRange);
   const auto back = through_bytes<CorrectedFrames>(msg.value());
   ASSERT_TRUE(back.ok()) << back.rejection().describe();
   EXPECT_EQ(back.value().utime, frames.utime);
