@@ -29,7 +29,6 @@
 
 #include <Eigen/Core>
 
-#include "lmf/fusion/compatibility_tests.hpp"
 #include "lmf/fusion/environment_graph.hpp"
 #include "lmf/fusion/global_map.hpp"
 #include "lmf/fusion/global_state.hpp"
@@ -38,6 +37,7 @@
 #include "lmf/geometry/pose2.hpp"
 #include "lmf/local_map/local_map_snapshot.hpp"
 #include "lmf/spmap/ekf.hpp"
+#include "lmf/spmap/estimator.hpp"
 
 namespace lmf::fusion {
 
@@ -67,7 +67,8 @@ struct FusionContext {
   const LocalMapSnapshot& snapshot;
   const EntityId L;
   const std::optional<EntityId> anchored_robot;
-  Chi2Table chi2;
+  const spmap::CarefulTolerance careful;  // the config's careful-inversion tolerance
+  spmap::Chi2Table chi2;                  // at GlobalMapConfig::alpha
   FusionReport report;
 
   // Step 1: the robot R and the local segments S_j in the state (children of L).
@@ -76,7 +77,8 @@ struct FusionContext {
   // Step 2: gated pairs (global segment, index into `local`), their joint
   // innovation, and the pairs that passed the individual and overlap tests.
   std::vector<std::pair<EntityId, std::size_t>> gated;
-  GlobalState::Innovation gated_innovation;
+  spmap::Innovation gated_innovation;
+  Eigen::VectorXd gated_h;  // their stacked ĥ, rows as in gated_innovation
   std::vector<PairingCandidate> candidates;
   // Step 3: the jointly compatible candidates (indices into `candidates`) and their measurements.
   std::vector<std::size_t> accepted;

@@ -43,8 +43,6 @@ void apply_shifts(GlobalState& state, const std::map<EntityId, Eigen::Matrix2d>&
 // perfect constraint B(⊖x_keep ⊕ x_drop) = 0, if that passes its own chi2 test.
 void fuse_matched_globals(FusionContext& f, const std::map<std::size_t, std::vector<EntityId>>& matches_of_local) {
   GlobalState& state = f.state;
-  const double rel = f.config.careful_relative_tolerance;
-  const double floor = f.config.careful_absolute_floor;
   UnionFind<EntityId> sets;
   for (const auto& [j, globals_of_j] : matches_of_local) {
     for (std::size_t a = 1; a < globals_of_j.size(); ++a) sets.unite(globals_of_j[0], globals_of_j[a]);
@@ -53,11 +51,11 @@ void fuse_matched_globals(FusionContext& f, const std::map<std::size_t, std::vec
     for (const EntityId drop : members) {
       if (drop == keep) continue;
       const spmap::ImplicitMeasurement m = spmap::measurement_from_chain(state.chain_between(keep, drop), {1, 2});
-      if (!chi2_test(state, m, f.chi2, rel, floor).passed) {
+      if (!spmap::individual_compatibility(state, m, f.careful, f.chi2).passed) {
         ++f.report.global_fusions_rejected;
         continue;
       }
-      state.ekf_update({m}, rel, floor);
+      spmap::ekf_update(state, {&m, 1}, f.careful);
       const Pose2 x_keep_drop = between(state.root_location(keep), state.root_location(drop));
       std::map<EntityId, Eigen::Matrix2d> shift;
       extend_to_cover(state, keep, spmap::project_extent(x_keep_drop, state.entity(drop).length_m), shift);

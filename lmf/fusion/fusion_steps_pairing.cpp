@@ -21,6 +21,7 @@ FusionContext::FusionContext(GlobalState& state_in, const GlobalMapConfig& confi
       snapshot(s),
       L(frame.frame),
       anchored_robot(frame.robot),
+      careful{config_in.careful_relative_tolerance, config_in.careful_absolute_floor},
       chi2(config_in.alpha) {
   report.robot_id = robot;
   report.seq = s.seq;
@@ -186,15 +187,17 @@ void test_individual_compatibility(FusionContext& f) {
   // One joint innovation covariance of all gated pairs serves both tests: each
   // individual S is a diagonal block of it, the joint test's S the block of the candidates.
   const GlobalState& state = f.state;
-  const double rel = f.config.careful_relative_tolerance;
-  const double floor = f.config.careful_absolute_floor;
   std::vector<spmap::ImplicitMeasurement> gated_measurements;
   gated_measurements.reserve(f.gated.size());
   for (const auto& [global_id, j] : f.gated) {
     gated_measurements.push_back(pairing_measurement(state, global_id, f.local[j]));
   }
-  if (!f.gated.empty()) f.gated_innovation = state.innovation(gated_measurements);
-  const GlobalState::Innovation& in = f.gated_innovation;
+  if (!f.gated.empty()) {
+    const spmap::StackedMeasurements stacked = spmap::stack(state, gated_measurements, "test_individual_compatibility");
+    f.gated_innovation = spmap::innovation(state.lower_view(), stacked);
+    f.gated_h = stacked.h;
+  }
+  const spmap::Innovation& in = f.gated_innovation;
   Eigen::Index row = 0;
   for (std::size_t g = 0; g < f.gated.size(); ++g) {
     PairingCandidate c;
@@ -205,8 +208,8 @@ void test_individual_compatibility(FusionContext& f) {
     c.row = row;
     const Eigen::Index dim = c.measurement.h.size();
     row += dim;
-    const Chi2Result t = chi2_test(in.S.block(c.row, c.row, dim, dim), c.measurement.h,
-                                   in.row_scale.segment(c.row, dim).maxCoeff(), f.chi2, rel, floor);
+    const spmap::CompatibilityTest t = spmap::chi2_test(in.S.block(c.row, c.row, dim, dim), c.measurement.h,
+                                                        in.row_scale.segment(c.row, dim).maxCoeff(), f.careful, f.chi2);
     if (!t.passed) {
       ++f.report.chi2_rejected;
       continue;
@@ -226,116 +229,21 @@ void test_individual_compatibility(FusionContext& f) {
 // ---------------------------------------------------------------------------
 // Step 3: joint compatibility and the EKF update
 
-namespace {
-
-// The accepted set of the incremental joint compatibility test: the kept rows
-// K of the candidates' joint innovation, S_KK⁻¹ grown by Schur complements,
-// ĥ_K, and the joint distance and degrees of freedom so far.
-class JointCompatibility {
- public:
-  JointCompatibility(Eigen::MatrixXd S_all, Eigen::VectorXd h_all, double threshold, double rel, Chi2Table& chi2)
-      : S_all_(std::move(S_all)), h_all_(std::move(h_all)), threshold_(threshold), rel_(rel), chi2_(chi2) {}
-
-  // Candidate c (rows 2c, 2c + 1 of S_all) joins the accepted set if the set
-  // stays jointly compatible; rows it adds that the accepted ones already
-  // determine are dropped (careful inversion, §III.B).
-  bool try_add(std::size_t c);
-
- private:
-  void grow(Eigen::Index r0, const Eigen::MatrixXd& B_Sinv, const spmap::CarefulInverse& ci);
-
-  Eigen::MatrixXd S_all_;
-  Eigen::VectorXd h_all_;
-  double threshold_;
-  double rel_;
-  Chi2Table& chi2_;
-  std::vector<Eigen::Index> K_;  // kept rows of S_all
-  Eigen::MatrixXd S_K_inv_ = Eigen::MatrixXd(0, 0);
-  Eigen::VectorXd h_K_ = Eigen::VectorXd(0);
-  double d2_ = 0.0;
-  int dof_ = 0;
-};
-
-bool JointCompatibility::try_add(std::size_t c) {
-  const auto r0 = static_cast<Eigen::Index>(2 * c);
-  const auto nK = static_cast<Eigen::Index>(K_.size());
-  Eigen::MatrixXd B(2, nK);
-  for (Eigen::Index a = 0; a < nK; ++a) B.col(a) = S_all_.block(r0, K_[static_cast<std::size_t>(a)], 2, 1);
-  // Products of 2 or 3 rows: coefficient-based (lazyProduct); Eigen's blocked
-  // GEMM spends more on packing than on the arithmetic at these shapes.
-  const Eigen::MatrixXd B_Sinv = B.lazyProduct(S_K_inv_);
-  Eigen::MatrixXd residual = S_all_.block(r0, r0, 2, 2) - B_Sinv.lazyProduct(B.transpose());
-  residual = (0.5 * (residual + residual.transpose())).eval();
-  const Eigen::VectorXd nu = h_all_.segment(r0, 2) - B_Sinv * h_K_;
-  const spmap::CarefulInverse ci = spmap::careful_inverse(residual, rel_, threshold_ / rel_);
-  const double pivot_threshold = std::max(threshold_, rel_ * residual.diagonal().cwiseAbs().maxCoeff());
-  if (!dropped_rows_consistent(residual, nu, ci, pivot_threshold, chi2_)) return false;
-  const auto kc = static_cast<Eigen::Index>(ci.kept.size());
-  Eigen::VectorXd nu_k(kc);
-  for (Eigen::Index a = 0; a < kc; ++a) nu_k(a) = nu(ci.kept[static_cast<std::size_t>(a)]);
-  const double d2_new = d2_ + (kc > 0 ? nu_k.dot(ci.inverse * nu_k) : 0.0);
-  const int dof_new = dof_ + static_cast<int>(kc);
-  if (dof_new > 0 && !(d2_new < chi2_(dof_new))) return false;
-  d2_ = d2_new;
-  dof_ = dof_new;
-  if (kc > 0) grow(r0, B_Sinv, ci);
-  return true;
-}
-
-void JointCompatibility::grow(Eigen::Index r0, const Eigen::MatrixXd& B_Sinv, const spmap::CarefulInverse& ci) {
-  // Block inverse of the grown accepted S.
-  const auto nK = static_cast<Eigen::Index>(K_.size());
-  const auto kc = static_cast<Eigen::Index>(ci.kept.size());
-  Eigen::MatrixXd Bk_Sinv(kc, nK);
-  for (Eigen::Index a = 0; a < kc; ++a) Bk_Sinv.row(a) = B_Sinv.row(ci.kept[static_cast<std::size_t>(a)]);
-  const Eigen::MatrixXd& Rk_inv = ci.inverse;
-  Eigen::MatrixXd grown(nK + kc, nK + kc);
-  grown.topRightCorner(nK, kc).noalias() = -Bk_Sinv.transpose().lazyProduct(Rk_inv);
-  grown.topLeftCorner(nK, nK).noalias() = S_K_inv_ - grown.topRightCorner(nK, kc).lazyProduct(Bk_Sinv);
-  grown.bottomLeftCorner(kc, nK) = grown.topRightCorner(nK, kc).transpose();
-  grown.bottomRightCorner(kc, kc) = Rk_inv;
-  S_K_inv_ = std::move(grown);
-  Eigen::VectorXd h_grown(nK + kc);
-  h_grown.head(nK) = h_K_;
-  for (Eigen::Index a = 0; a < kc; ++a) h_grown(nK + a) = h_all_(r0 + ci.kept[static_cast<std::size_t>(a)]);
-  h_K_ = std::move(h_grown);
-  for (const int kept_row : ci.kept) K_.push_back(r0 + kept_row);
-}
-
-}  // namespace
-
 void test_joint_compatibility(FusionContext& f) {
   std::vector<PairingCandidate>& candidates = f.candidates;
+  if (candidates.empty()) return;
+  // Best individual distance first.
   std::vector<std::size_t> order(candidates.size());
   std::iota(order.begin(), order.end(), std::size_t{0});
   std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
     return candidates[a].distance2 < candidates[b].distance2;
   });
-  if (candidates.empty()) return;
   // The candidates' rows of the gated innovation, in test order.
-  std::vector<Eigen::Index> rows;
-  for (const std::size_t c : order) {
-    for (Eigen::Index i = 0; i < candidates[c].measurement.h.size(); ++i) rows.push_back(candidates[c].row + i);
-  }
-  const GlobalState::Innovation& in = f.gated_innovation;
-  const auto m_all = static_cast<Eigen::Index>(rows.size());
-  Eigen::MatrixXd S_all(m_all, m_all);
-  Eigen::VectorXd h_all(m_all);
-  double candidates_scale = 0.0;
-  for (Eigen::Index a = 0; a < m_all; ++a) {
-    const Eigen::Index ra = rows[static_cast<std::size_t>(a)];
-    for (Eigen::Index b = 0; b < m_all; ++b) S_all(a, b) = in.S(ra, rows[static_cast<std::size_t>(b)]);
-    candidates_scale = std::max(candidates_scale, in.row_scale(ra));
-  }
-  Eigen::Index filled = 0;
-  for (const std::size_t c : order) {
-    h_all.segment(filled, candidates[c].measurement.h.size()) = candidates[c].measurement.h;
-    filled += candidates[c].measurement.h.size();
-  }
-  const double rel = f.config.careful_relative_tolerance;
-  const double floor = f.config.careful_absolute_floor;
-  const double threshold = rel * std::max({S_all.diagonal().maxCoeff(), candidates_scale, floor / rel});
-  JointCompatibility jc(std::move(S_all), std::move(h_all), threshold, rel, f.chi2);
+  std::vector<spmap::JointCompatibility::Rows> rows;
+  rows.reserve(order.size());
+  for (const std::size_t c : order) rows.push_back({candidates[c].row, candidates[c].measurement.h.size()});
+  spmap::JointCompatibility jc(f.gated_innovation.S, f.gated_innovation.row_scale, f.gated_h, std::move(rows),
+                               f.careful, f.chi2);
   for (std::size_t c = 0; c < order.size(); ++c) {
     if (!jc.try_add(c)) {
       ++f.report.jc_rejected;
@@ -350,8 +258,7 @@ void update_with_pairings(FusionContext& f) {
   FusionReport& rep = f.report;
   rep.pairings_accepted = static_cast<int>(f.accepted.size());
   rep.update_dimension = f.state.dimension();
-  const StateUpdateReport u =
-      f.state.ekf_update(f.accepted_measurements, f.config.careful_relative_tolerance, f.config.careful_absolute_floor);
+  const spmap::UpdateReport u = spmap::ekf_update(f.state, f.accepted_measurements, f.careful);
   rep.update_rows = u.rows;
   rep.rows_dropped = u.rows_dropped;
   rep.rows_kept = u.rows_kept;

@@ -1,17 +1,11 @@
 #include "lmf/fusion/global_state.hpp"
 
 #include <algorithm>
-#include <cassert>
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
 #include <string>
 #include <unordered_set>
-
-#include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
-
-#include "lmf/spmap/careful_inverse.hpp"
 
 namespace lmf::fusion {
 namespace {
@@ -380,167 +374,6 @@ void GlobalState::transform_perturbations(const std::vector<LinearTerm>& maps) {
   }
 }
 
-void GlobalState::validate_measurement(const spmap::ImplicitMeasurement& m, const char* where) const {
-  const Eigen::Index r = m.h.size();
-  if (m.R.rows() != r || m.R.cols() != r || !m.h.allFinite() || !m.R.allFinite()) {
-    throw std::invalid_argument(std::string(where) + ": measurement h/R sizes or values are invalid");
-  }
-  for (const spmap::JacobianBlock& b : m.blocks) {
-    const Entity& e = entity(b.entity);
-    if (b.J.rows() != r || b.J.cols() != spmap::dof(e.kind) || !b.J.allFinite()) {
-      throw std::invalid_argument(std::string(where) + ": Jacobian block of " + id_text(b.entity) +
-                                  " has the wrong size or is not finite");
-    }
-  }
-}
-
-GlobalState::Stacked GlobalState::stack(std::span<const spmap::ImplicitMeasurement> measurements,
-                                         const char* where) const {
-  Stacked st;
-  st.touched.reserve(4 * measurements.size());
-  st.column.reserve(4 * measurements.size());
-  st.width.reserve(4 * measurements.size());
-  st.offset.reserve(4 * measurements.size());
-  st.blocks.reserve(4 * measurements.size());
-  Eigen::Index m = 0;
-  Eigen::Index t = 0;
-  for (const spmap::ImplicitMeasurement& meas : measurements) {
-    validate_measurement(meas, where);
-    m += meas.h.size();
-    for (const spmap::JacobianBlock& b : meas.blocks) {
-      if (std::find(st.touched.begin(), st.touched.end(), b.entity) == st.touched.end()) {
-        st.touched.push_back(b.entity);
-        st.column.push_back(t);
-        st.width.push_back(b.J.cols());
-        st.offset.push_back(entity(b.entity).offset);
-        t += b.J.cols();
-      }
-    }
-  }
-  st.H = Eigen::MatrixXd::Zero(m, t);
-  st.R = Eigen::MatrixXd::Zero(m, m);
-  st.h.resize(m);
-  Eigen::Index row = 0;
-  for (const spmap::ImplicitMeasurement& meas : measurements) {
-    const Eigen::Index r = meas.h.size();
-    const std::size_t first_block = st.blocks.size();
-    for (const spmap::JacobianBlock& b : meas.blocks) {
-      const auto a = static_cast<std::size_t>(
-          std::find(st.touched.begin(), st.touched.end(), b.entity) - st.touched.begin());
-      st.H.block(row, st.column[a], r, b.J.cols()) += b.J;
-      const bool listed = std::any_of(st.blocks.begin() + static_cast<std::ptrdiff_t>(first_block), st.blocks.end(),
-                                      [a](const Stacked::Block& k) { return k.touched == a; });
-      if (!listed) st.blocks.push_back({row, r, a});
-    }
-    st.R.block(row, row, r, r) = meas.R;
-    st.h.segment(row, r) = meas.h;
-    row += r;
-  }
-  return st;
-}
-
-Eigen::MatrixXd GlobalState::Stacked::times_Ht(const Eigen::MatrixXd& X) const {
-  // Column axpys: at these shapes (n x 3 times 3 x 2 per block) Eigen's
-  // blocked product costs more in packing than the arithmetic.
-  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(X.rows(), H.rows());
-  for (const Block& b : blocks) {
-    const Eigen::Index c = column[b.touched];
-    const Eigen::Index d = width[b.touched];
-    for (Eigen::Index i = 0; i < b.rows; ++i) {
-      for (Eigen::Index j = 0; j < d; ++j) out.col(b.row + i) += H(b.row + i, c + j) * X.col(c + j);
-    }
-  }
-  return out;
-}
-
-Eigen::MatrixXd GlobalState::touched_columns(const Stacked& st) const {
-  // docs/design.md §5.3: P Hᵀ only needs the columns of the few entities H touches,
-  // read from the lower triangle (the row left of the diagonal, the column below it).
-  Eigen::MatrixXd C(n_, st.H.cols());
-  for (std::size_t a = 0; a < st.touched.size(); ++a) {
-    const Eigen::Index off = st.offset[a];
-    const Eigen::Index d = st.width[a];
-    const Eigen::Index c = st.column[a];
-    C.block(0, c, off, d) = storage_.block(off, 0, d, off).transpose();
-    C.block(off, c, d, d) = symmetric_from_lower(storage_.block(off, off, d, d));
-    C.block(off + d, c, n_ - off - d, d) = storage_.block(off + d, off, n_ - off - d, d);
-  }
-  return C;
-}
-
-Eigen::MatrixXd GlobalState::touched_marginal(const Stacked& st, const Eigen::MatrixXd* columns) const {
-  const Eigen::Index t = st.H.cols();
-  Eigen::MatrixXd M(t, t);
-  for (std::size_t a = 0; a < st.touched.size(); ++a) {
-    const Eigen::Index off_a = st.offset[a];
-    const Eigen::Index d_a = st.width[a];
-    const Eigen::Index c_a = st.column[a];
-    if (columns != nullptr) {
-      M.middleRows(c_a, d_a) = columns->middleRows(off_a, d_a);
-      continue;
-    }
-    // Block by block from the stored lower triangle, mirrored.
-    M.block(c_a, c_a, d_a, d_a) = symmetric_from_lower(storage_.block(off_a, off_a, d_a, d_a));
-    for (std::size_t b = 0; b < a; ++b) {
-      const Eigen::Index off_b = st.offset[b];
-      const Eigen::Index d_b = st.width[b];
-      const Eigen::Index c_b = st.column[b];
-      if (off_a > off_b) {
-        M.block(c_a, c_b, d_a, d_b) = storage_.block(off_a, off_b, d_a, d_b);
-      } else {
-        M.block(c_a, c_b, d_a, d_b) = storage_.block(off_b, off_a, d_b, d_a).transpose();
-      }
-      M.block(c_b, c_a, d_b, d_a) = M.block(c_a, c_b, d_a, d_b).transpose();
-    }
-  }
-  return M;
-}
-
-Eigen::VectorXd GlobalState::row_scales(const Stacked& st, const Eigen::MatrixXd& P_tt) {
-  // (Σ_blocks J P_EE Jᵀ + R)_ii: the diagonal blocks of P only, over H's
-  // nonzero blocks.
-  Eigen::VectorXd diag = st.R.diagonal();
-  for (const Stacked::Block& b : st.blocks) {
-    const Eigen::Index c = st.column[b.touched];
-    const Eigen::Index d = st.width[b.touched];
-    const auto J = st.H.block(b.row, c, b.rows, d);
-    diag.segment(b.row, b.rows) += J.lazyProduct(P_tt.block(c, c, d, d)).cwiseProduct(J).rowwise().sum();
-  }
-  return diag;
-}
-
-Eigen::MatrixXd GlobalState::touched_rows(const Stacked& st, const Eigen::MatrixXd& PHt) {
-  Eigen::MatrixXd out(st.H.cols(), PHt.cols());
-  for (std::size_t a = 0; a < st.touched.size(); ++a) {
-    out.middleRows(st.column[a], st.width[a]) = PHt.middleRows(st.offset[a], st.width[a]);
-  }
-  return out;
-}
-
-Eigen::MatrixXd GlobalState::gather_PHt(const std::vector<spmap::ImplicitMeasurement>& measurements) const {
-  const Stacked st = stack(measurements, "GlobalState::gather_PHt");
-  return st.times_Ht(touched_columns(st));
-}
-
-GlobalState::Innovation GlobalState::innovation(const std::vector<spmap::ImplicitMeasurement>& measurements) const {
-  return innovation_of(stack(measurements, "GlobalState::innovation"));
-}
-
-GlobalState::Innovation GlobalState::innovation(const spmap::ImplicitMeasurement& measurement) const {
-  return innovation_of(stack({&measurement, 1}, "GlobalState::innovation"));
-}
-
-GlobalState::Innovation GlobalState::innovation_of(const Stacked& st) const {
-  const Eigen::MatrixXd P_tt = touched_marginal(st, nullptr);
-  Innovation out;
-  // H P_tt Hᵀ + R = ((P_tt Hᵀ)ᵀ Hᵀ) + R, P_tt symmetric.
-  out.S = st.times_Ht(st.times_Ht(P_tt).transpose()) + st.R;
-  out.S = (0.5 * (out.S + out.S.transpose())).eval();
-  out.row_scale = row_scales(st, P_tt);
-  out.reference_scale = out.row_scale.size() > 0 ? out.row_scale.maxCoeff() : 0.0;
-  return out;
-}
-
 std::vector<EntityId> GlobalState::add_many(const std::vector<NewEntity>& entities) {
   Eigen::Index total = 0;
   for (const NewEntity& e : entities) {
@@ -575,76 +408,13 @@ std::vector<EntityId> GlobalState::add_many(const std::vector<NewEntity>& entiti
   return ids;
 }
 
-StateUpdateReport GlobalState::ekf_update(const std::vector<spmap::ImplicitMeasurement>& measurements,
-                                          double relative_tolerance, double absolute_floor) {
-  StateUpdateReport report;
-  const Stacked st = stack(measurements, "GlobalState::ekf_update");
-  report.touched = st.touched;
-  const Eigen::Index m_total = st.H.rows();
-  report.rows = static_cast<int>(m_total);
-  if (m_total == 0) return report;
-
-  // P Hᵀ from the gathered columns, block by block of H; S = H P Hᵀ + R from
-  // its touched rows (P(touched, :) Hᵀ = (P Hᵀ)(touched, :)).
-  const Eigen::MatrixXd C = touched_columns(st);
-  const Eigen::MatrixXd P_tt = touched_marginal(st, &C);
-  Eigen::MatrixXd PHt = st.times_Ht(C);
-  Eigen::MatrixXd S = st.times_Ht(touched_rows(st, PHt).transpose()) + st.R;  // H (P Hᵀ)(touched, :) + R
-  S = (0.5 * (S + S.transpose())).eval();
-
-  // docs/design.md §6: full-pivot Gauss–Jordan; drop the rows whose pivots fall below
-  // the threshold (relative to the scale of S, never below the absolute floor).
-  const Eigen::VectorXd row_scale = row_scales(st, P_tt);
-  const double scale = std::max(row_scale.maxCoeff(), absolute_floor / relative_tolerance);
-  const spmap::CarefulInverse ci = spmap::careful_inverse(S, relative_tolerance, scale);
-  report.rows_dropped = static_cast<int>(ci.dropped.size());
-  const auto k = static_cast<Eigen::Index>(ci.kept.size());
-  report.rows_kept = static_cast<int>(k);
-  if (k == 0) return report;
-
-  Eigen::MatrixXd S_k(k, k);
-  Eigen::VectorXd h_k(k);
-  for (Eigen::Index a = 0; a < k; ++a) {
-    const Eigen::Index ra = ci.kept[static_cast<std::size_t>(a)];
-    h_k(a) = st.h(ra);
-    for (Eigen::Index b = 0; b < k; ++b) S_k(a, b) = S(ra, ci.kept[static_cast<std::size_t>(b)]);
+void GlobalState::subtract_outer_product(const Eigen::MatrixXd& U) {
+  if (U.rows() != n_) {
+    throw std::invalid_argument("GlobalState::subtract_outer_product: U has " + std::to_string(U.rows()) +
+                                " rows, the state " + std::to_string(n_));
   }
-  if (k < m_total) {
-    Eigen::MatrixXd PHt_k(n_, k);
-    for (Eigen::Index a = 0; a < k; ++a) PHt_k.col(a) = PHt.col(ci.kept[static_cast<std::size_t>(a)]);
-    PHt = std::move(PHt_k);
-  }
-  const Eigen::VectorXd Sinv_h = ci.inverse * h_k;
-  report.distance2 = h_k.dot(Sinv_h);
-
-  // Eq. (9): p̂ = −W ĥ with W = P Hᵀ S⁻¹ (the measurement predicts ĥ, observes 0).
-  const Eigen::VectorXd p_hat = -(PHt * Sinv_h);
-
-  // P ← P − P Hᵀ S⁻¹ H P = P − U Uᵀ, U = P Hᵀ L⁻ᵀ with S_k = L Lᵀ: one
-  // symmetric rank-k update of the lower triangle (docs/design.md §5.3).
-  const Eigen::LLT<Eigen::MatrixXd> llt(S_k);
-  if (llt.info() == Eigen::Success) {
-    llt.matrixU().solveInPlace<Eigen::OnTheRight>(PHt);  // PHt ← PHt L⁻ᵀ
-  } else {
-    // The kept pivots are well above the threshold, so this is rounding only:
-    // factor the careful inverse itself, negative rounding clipped.
-    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(ci.inverse);
-    const Eigen::VectorXd root = es.eigenvalues().cwiseMax(0.0).cwiseSqrt();
-    PHt = (PHt * es.eigenvectors() * root.asDiagonal()).eval();
-  }
-  storage_.topLeftCorner(n_, n_).selfadjointView<Eigen::Lower>().rankUpdate(PHt, -1.0);
-
-  // Fold p̂ into every location and reset it to 0 (docs/design.md §3): x̂ ← x̂ ⊕ Bᵀ p̂.
-  assert(p_hat.allFinite());
-  for (Entity& e : entities_) {
-    const double* p = p_hat.data() + e.offset;
-    if (e.kind == EntityKind::kSegment) {
-      if (p[0] != 0.0 || p[1] != 0.0) e.location = compose(e.location, Pose2(0.0, p[0], p[1]));
-    } else if (p[0] != 0.0 || p[1] != 0.0 || p[2] != 0.0) {
-      e.location = compose(e.location, Pose2(p[0], p[1], p[2]));
-    }
-  }
-  return report;
+  if (U.cols() == 0) return;
+  storage_.topLeftCorner(n_, n_).selfadjointView<Eigen::Lower>().rankUpdate(U, -1.0);
 }
 
 }  // namespace lmf::fusion

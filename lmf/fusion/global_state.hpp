@@ -13,9 +13,9 @@
 //    goes through the lower triangle (column below the diagonal, row left of it).
 //  * remove() takes a batch and compacts P in place in one pass, touching only
 //    the columns/rows after the first removed entity.
-//  * The EKF update is a gather P Hᵀ over the entities H touches, then
-//    P ← P − U Uᵀ with U = P Hᵀ L⁻ᵀ (S = L Lᵀ over the rows the careful
-//    inversion keeps): Eigen's symmetric rank-k update of the lower triangle.
+//  * It is a covariance store of the one estimator (spmap/estimator.hpp):
+//    compatibility tests and the EKF update read the lower triangle, and the
+//    update's P ← P − U Uᵀ is Eigen's symmetric rank-k update of it.
 //
 // Ids are never reused. Not thread-safe; all methods are synchronous.
 #pragma once
@@ -29,6 +29,7 @@
 
 #include "lmf/geometry/pose2.hpp"
 #include "lmf/spmap/ekf.hpp"
+#include "lmf/spmap/estimator.hpp"
 #include "lmf/spmap/entity.hpp"
 #include "lmf/spmap/relative_location.hpp"
 #include "lmf/spmap/stochastic_map.hpp"
@@ -39,13 +40,6 @@ using spmap::Entity;
 using spmap::EntityId;
 using spmap::EntityKind;
 
-struct StateUpdateReport {
-  int rows = 0;           // rows of the stacked measurement
-  int rows_dropped = 0;   // rows the careful inversion found redundant (docs/design.md §6)
-  int rows_kept = 0;      // k: the rank of the covariance update
-  double distance2 = 0.0; // ĥᵀ S⁻¹ ĥ over the kept rows
-  std::vector<EntityId> touched;  // entities with a Jacobian block (for health checks)
-};
 
 class GlobalState {
  public:
@@ -122,37 +116,9 @@ class GlobalState {
   // entity's row (a column stride apiece) once per entity.
   void transform_perturbations(const std::vector<LinearTerm>& maps);
 
-  // P Hᵀ (n x m) as a gather over the entities the measurements touch.
-  Eigen::MatrixXd gather_PHt(const std::vector<spmap::ImplicitMeasurement>& measurements) const;
-
-  // S = H P Hᵀ + R (m x m) through the marginal of the touched entities only,
-  // and the scale against which the careful inversion judges a pivot small:
-  // the largest diagonal of S as if the touched entities were uncorrelated,
-  // max_i (Σ_blocks J P_EE Jᵀ + R)_ii (the rule of spmap::innovation_reference_scale).
-  // A relation the state already knows has S ≈ 0 (rounding) while this is not small.
-  // row_scale holds that diagonal row by row, so a diagonal block of S (one
-  // measurement of the stack) carries its own scale: the max over its rows.
-  struct Innovation {
-    Eigen::MatrixXd S;
-    Eigen::VectorXd row_scale;
-    double reference_scale = 0.0;
-  };
-  Innovation innovation(const std::vector<spmap::ImplicitMeasurement>& measurements) const;
-  Innovation innovation(const spmap::ImplicitMeasurement& measurement) const;
-  Eigen::MatrixXd innovation_covariance(const std::vector<spmap::ImplicitMeasurement>& measurements) const {
-    return innovation(measurements).S;
-  }
-  double reference_scale(const std::vector<spmap::ImplicitMeasurement>& measurements) const {
-    return innovation(measurements).reference_scale;
-  }
-
-  // One EKF update with all measurements (paper eq. 9) through the careful
-  // inversion (docs/design.md §6): rows whose pivot is below
-  // max(relative_tolerance · max(max diag S, reference_scale), absolute_floor)
-  // are dropped (an all-dropped S changes nothing). p̂ is folded into the
-  // locations and reset to 0.
-  StateUpdateReport ekf_update(const std::vector<spmap::ImplicitMeasurement>& measurements,
-                               double relative_tolerance, double absolute_floor);
+  // P ← P − U Uᵀ (U: n x k) as one symmetric rank-k update of the stored
+  // lower triangle: the covariance step of spmap::ekf_update (estimator.hpp).
+  void subtract_outer_product(const Eigen::MatrixXd& U);
 
   // Appends several entities at once (zero covariance), touching the rows of
   // P once instead of once per entity. Returns their ids in order.
@@ -167,38 +133,7 @@ class GlobalState {
  private:
   friend class GlobalMapArchive;  // global_map_archive.cpp: exact save/restore
   std::size_t index_of(EntityId id) const;
-  void validate_measurement(const spmap::ImplicitMeasurement& m, const char* where) const;
   std::vector<Eigen::Index> rows_of(const std::vector<EntityId>& ids) const;
-  // The stacked measurements over the entities they touch: H (m x t, columns
-  // in the order of `touched`), R and ĥ. H is block sparse (each measurement
-  // touches a few entities); `blocks` lists its nonzero blocks.
-  struct Stacked {
-    struct Block {
-      Eigen::Index row;     // first row (the measurement's)
-      Eigen::Index rows;    // the measurement's dimension
-      std::size_t touched;  // index into `touched` / `column`
-    };
-    std::vector<EntityId> touched;
-    std::vector<Eigen::Index> column;  // first column of each touched entity in H
-    std::vector<Eigen::Index> width;   // its degrees of freedom
-    std::vector<Eigen::Index> offset;  // its first row in P
-    std::vector<Block> blocks;
-    Eigen::MatrixXd H;
-    Eigen::MatrixXd R;
-    Eigen::VectorXd h;
-
-    // X Hᵀ for X with one column per column of H (X: r x t -> r x m): a sum
-    // over H's nonzero blocks only, never the dense H. H Y is times_Ht(Yᵀ)ᵀ.
-    Eigen::MatrixXd times_Ht(const Eigen::MatrixXd& X) const;
-  };
-  Stacked stack(std::span<const spmap::ImplicitMeasurement> measurements, const char* where) const;
-  Innovation innovation_of(const Stacked& st) const;
-  // P(:, touched) (n x t) and P(touched, touched) (t x t).
-  Eigen::MatrixXd touched_columns(const Stacked& st) const;
-  Eigen::MatrixXd touched_marginal(const Stacked& st, const Eigen::MatrixXd* columns) const;
-  // P(touched, :) Hᵀ (t x m): the touched rows of P Hᵀ, in H's column order.
-  static Eigen::MatrixXd touched_rows(const Stacked& st, const Eigen::MatrixXd& PHt);
-  static Eigen::VectorXd row_scales(const Stacked& st, const Eigen::MatrixXd& P_tt);
   void write_marginal(const std::vector<EntityId>& ids, const Eigen::MatrixXd& M, bool accumulate);
 
   std::vector<Entity> entities_;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <numeric>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -38,7 +39,11 @@ bool usable(const ObservedSegment& e) {
 LocalMap::LocalMap(const LocalMapConfig& config, int robot_id)
     : config_(config),
       robot_id_(robot_id),
-      odometry_learner_((config.validate(), local_map::odometry_prior(config)), config.odometry_learning) {
+      odometry_learner_((config.validate(), local_map::odometry_prior(config)), config.odometry_learning),
+      careful_{config.careful_inverse_tolerance, 0.0},
+      pairing_chi2_(config.pairing_alpha),
+      joint_chi2_(config.joint_alpha),
+      constraint_chi2_(config.constraint_alpha) {
   pairing_threshold_ = spmap::chi2_threshold(2, config_.pairing_alpha);
   robot_ = map_.add(EntityKind::kRobot, Pose2());
 }
@@ -276,8 +281,7 @@ std::vector<LocalMap::Candidate> LocalMap::pair_observations(const std::vector<O
       }
       // Individual compatibility, chi2(2) (paper eq. 8; docs/design.md §4.3).
       spmap::ImplicitMeasurement m = local_map::pairing_measurement(map_, s.id, robot_, observations[i]);
-      const spmap::CompatibilityTest test = spmap::individual_compatibility(
-          map_, m, config_.pairing_alpha, config_.careful_inverse_tolerance);
+      const spmap::CompatibilityTest test = spmap::individual_compatibility(map_, m, careful_, pairing_chi2_);
       if (!test.passed) {
         ++report.pairings_rejected_individual;
         continue;
@@ -303,8 +307,27 @@ std::vector<LocalMap::Pairing> LocalMap::joint_update(std::vector<Candidate> can
   measurements.reserve(candidates.size());
   for (Candidate& c : candidates) measurements.push_back(std::move(c.measurement));
 
-  std::vector<std::size_t> kept = spmap::incremental_joint_compatibility(
-      map_, measurements, config_.joint_alpha, config_.careful_inverse_tolerance);
+  // One joint innovation of all candidates serves every visiting order.
+  const spmap::StackedMeasurements stacked = spmap::stack(map_, measurements, "LocalMap::joint_update");
+  const spmap::Innovation innovation = spmap::innovation(map_.lower_view(), stacked);
+  std::vector<spmap::JointCompatibility::Rows> rows;
+  rows.reserve(measurements.size());
+  for (Eigen::Index first = 0; const spmap::ImplicitMeasurement& m : measurements) {
+    rows.push_back({first, m.h.size()});
+    first += m.h.size();
+  }
+  // The candidates of `order` visited in turn; those kept, in visiting order.
+  const auto jointly_compatible = [&](const std::vector<std::size_t>& order) {
+    spmap::JointCompatibility jc(innovation.S, innovation.row_scale, stacked.h, rows, careful_, joint_chi2_);
+    std::vector<std::size_t> kept_in_order;
+    for (const std::size_t k : order) {
+      if (jc.try_add(k)) kept_in_order.push_back(k);
+    }
+    return kept_in_order;
+  };
+  std::vector<std::size_t> by_distance(candidates.size());
+  std::iota(by_distance.begin(), by_distance.end(), std::size_t{0});
+  std::vector<std::size_t> kept = jointly_compatible(by_distance);
   // The greedy visiting order lets one early spurious pairing (an accidental
   // match with a small distance) exclude the right set when the robot's
   // predicted pose is off. Restarts: the first rejected candidates, one at a
@@ -322,14 +345,9 @@ std::vector<LocalMap::Pairing> LocalMap::joint_update(std::vector<Candidate> can
       for (std::size_t k = 0; k < candidates.size(); ++k) {
         if (k != seed) order.push_back(k);
       }
-      std::vector<spmap::ImplicitMeasurement> reordered;
-      reordered.reserve(order.size());
-      for (std::size_t k : order) reordered.push_back(measurements[k]);
-      const std::vector<std::size_t> kept_here = spmap::incremental_joint_compatibility(
-          map_, reordered, config_.joint_alpha, config_.careful_inverse_tolerance);
+      std::vector<std::size_t> kept_here = jointly_compatible(order);
       if (kept_here.size() <= kept.size()) continue;
-      kept.clear();
-      for (std::size_t k : kept_here) kept.push_back(order[k]);
+      kept = std::move(kept_here);
     }
     report.joint_compatibility_restarts = static_cast<int>(restarts);
   }
@@ -344,8 +362,7 @@ std::vector<LocalMap::Pairing> LocalMap::joint_update(std::vector<Candidate> can
     pairings.push_back(candidates[k].pairing);
   }
   // Eq. (9) with the reduced innovation (docs/design.md §6); folds p̂ into every location.
-  const spmap::UpdateReport update =
-      spmap::ekf_update(map_, compatible, config_.careful_inverse_tolerance);
+  const spmap::UpdateReport update = spmap::ekf_update(map_, compatible, careful_);
   report.update_rows = update.rows;
   report.update_rows_dropped = update.rows_dropped;
   return pairings;
@@ -478,8 +495,7 @@ void LocalMap::apply_constraints(const std::vector<EntityId>& added, ScanReport&
       if (std::abs(wrap_angle(relative - target)) > config_.constraint_max_angle_rad) continue;
       ++report.constraints_tried;
       spmap::ImplicitMeasurement m = local_map::angular_constraint(map_, r, n, target);
-      const spmap::CompatibilityTest test = spmap::individual_compatibility(
-          map_, m, config_.constraint_alpha, config_.careful_inverse_tolerance);
+      const spmap::CompatibilityTest test = spmap::individual_compatibility(map_, m, careful_, constraint_chi2_);
       if (!test.passed) {
         ++report.constraints_rejected_individual;
         continue;
@@ -495,15 +511,15 @@ void LocalMap::apply_constraints(const std::vector<EntityId>& added, ScanReport&
   std::vector<spmap::ImplicitMeasurement> measurements;
   measurements.reserve(candidates.size());
   for (ConstraintCandidate& c : candidates) measurements.push_back(std::move(c.measurement));
-  const std::vector<std::size_t> kept = spmap::incremental_joint_compatibility(
-      map_, measurements, config_.constraint_alpha, config_.careful_inverse_tolerance);
+  const std::vector<std::size_t> kept =
+      spmap::incremental_joint_compatibility(map_, measurements, careful_, constraint_chi2_);
   report.constraints_rejected_joint = static_cast<int>(candidates.size() - kept.size());
   if (kept.empty()) return;
 
   std::vector<spmap::ImplicitMeasurement> applied;
   applied.reserve(kept.size());
   for (std::size_t k : kept) applied.push_back(std::move(measurements[k]));
-  const spmap::UpdateReport update = spmap::ekf_update(map_, applied, config_.careful_inverse_tolerance);
+  const spmap::UpdateReport update = spmap::ekf_update(map_, applied, careful_);
   report.constraints_applied = update.rows;
   report.constraint_rows_dropped = update.rows_dropped;
   for (std::size_t k : kept) groups_.unite(candidates[k].a, candidates[k].b);

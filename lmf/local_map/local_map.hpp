@@ -47,6 +47,7 @@
 #include "lmf/scan/scan_matcher.hpp"
 #include "lmf/spmap/covariance_check.hpp"
 #include "lmf/spmap/ekf.hpp"
+#include "lmf/spmap/estimator.hpp"
 #include "lmf/spmap/stochastic_map.hpp"
 
 namespace lmf {
@@ -214,6 +215,12 @@ class LocalMap {
   spmap::StochasticMap map_;
   spmap::EntityId robot_ = 0;
   OdometryModelLearner odometry_learner_;
+  // The estimator's settings (spmap/estimator.hpp): the careful inversion's
+  // relative tolerance, and chi2 quantiles at each test's significance (caches).
+  spmap::CarefulTolerance careful_;
+  mutable spmap::Chi2Table pairing_chi2_;
+  spmap::Chi2Table joint_chi2_;
+  spmap::Chi2Table constraint_chi2_;
   std::optional<Pose2> odometry_reference_;
   // The last scans with their poses relative to the newest (scan_matching.enabled):
   // the reference of step 1's match. Relative to the robot, so reset() keeps it.

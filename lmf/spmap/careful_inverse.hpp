@@ -27,7 +27,7 @@ CarefulInverse careful_inverse(const Eigen::MatrixXd& S, double relative_toleran
 // Same, with an absolute scale for "small": the size S would have without the
 // cancellations that make it (nearly) singular. Without it a matrix that is all
 // rounding noise (a constraint repeated once more) looks well scaled relative to
-// itself and its noise would be inverted. ekf.hpp passes the variance of the
+// itself and its noise would be inverted. estimator.hpp passes the variance of the
 // rows as if the entities were uncorrelated.
 CarefulInverse careful_inverse(const Eigen::MatrixXd& S, double relative_tolerance, double reference_scale);
 

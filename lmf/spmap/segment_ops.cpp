@@ -6,6 +6,7 @@
 #include <string>
 
 #include "lmf/spmap/ekf.hpp"
+#include "lmf/spmap/estimator.hpp"
 #include "lmf/spmap/relative_location.hpp"
 
 namespace lmf::spmap {
@@ -64,8 +65,10 @@ bool fuse_segments(StochasticMap& map, EntityId keep, EntityId drop, double alph
   // Perfect constraint: drop lies on keep's line with keep's direction,
   // B(⊖x_keep ⊕ x_drop) = 0 on the lateral and angular rows, R = 0.
   const ImplicitMeasurement m = measurement_from_chain(chain_between(map, keep, drop), {1, 2});
-  if (!individual_compatibility(map, m, alpha).passed) return false;
-  ekf_update(map, {m});
+  Chi2Table chi2(alpha);
+  const CarefulTolerance tolerance;
+  if (!individual_compatibility(map, m, tolerance, chi2).passed) return false;
+  ekf_update(map, {&m, 1}, tolerance);
 
   // Geometric update: keep grows to cover drop's extent (now on its line).
   const Pose2 x_keep_drop = between(map.root_location(keep), map.root_location(drop));

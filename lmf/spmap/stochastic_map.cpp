@@ -171,4 +171,32 @@ std::size_t StochasticMap::index_of(EntityId id) const {
   return it->second;
 }
 
+void mirror_lower_to_upper(Eigen::Ref<Eigen::MatrixXd> P) {
+  if (P.rows() != P.cols()) throw std::invalid_argument("mirror_lower_to_upper: matrix is not square");
+  // Block transposes: a column-by-column mirror reads rows with stride n and
+  // costs more than the rank-k update itself on a large P.
+  const Eigen::Index n = P.rows();
+  constexpr Eigen::Index kBlock = 64;
+  for (Eigen::Index j0 = 0; j0 < n; j0 += kBlock) {
+    const Eigen::Index bj = std::min(kBlock, n - j0);
+    for (Eigen::Index i0 = 0; i0 < j0; i0 += kBlock) {
+      P.block(i0, j0, kBlock, bj) = P.block(j0, i0, bj, kBlock).transpose();
+    }
+    for (Eigen::Index j = j0 + 1; j < j0 + bj; ++j) {
+      for (Eigen::Index i = j0; i < j; ++i) P(i, j) = P(j, i);
+    }
+  }
+}
+
+void StochasticMap::subtract_outer_product(const Eigen::MatrixXd& U) {
+  if (U.rows() != n_) {
+    throw std::invalid_argument("StochasticMap::subtract_outer_product: U has " + std::to_string(U.rows()) +
+                                " rows, the map " + std::to_string(n_));
+  }
+  if (U.cols() == 0) return;
+  MutableCovarianceView P = mutable_covariance();
+  P.selfadjointView<Eigen::Lower>().rankUpdate(U, -1.0);
+  mirror_lower_to_upper(P);
+}
+
 }  // namespace lmf::spmap

@@ -55,6 +55,12 @@ class StochasticMap {
   // side must be n x n.
   CovarianceView covariance() const { return CovarianceView(P_, 0, 0, n_, n_); }
   MutableCovarianceView mutable_covariance() { return MutableCovarianceView(P_, 0, 0, n_, n_); }
+  // P as a covariance store of the estimator (estimator.hpp): both triangles
+  // are kept, so the lower one is P's own view.
+  CovarianceView lower_view() const { return covariance(); }
+  // P ← P − U Uᵀ (U: n x k): a rank-k update of the lower triangle, mirrored
+  // so both triangles stay valid. Throws std::invalid_argument if U has not n rows.
+  void subtract_outer_product(const Eigen::MatrixXd& U);
   // Rows/columns the buffer holds before the next reallocation (>= dimension()).
   Eigen::Index capacity() const { return P_.rows(); }
   // Grows the buffer to at least `dimension` rows/columns (never shrinks).
@@ -95,5 +101,10 @@ class StochasticMap {
   Eigen::Index n_ = 0;   // dimension of P
   EntityId next_id_ = 0;
 };
+
+// Copies the lower triangle of the square matrix P onto its upper triangle
+// (cache-blocked; used after a lower-triangle rank-k update). Takes a dense
+// matrix or a block of one, e.g. StochasticMap::mutable_covariance().
+void mirror_lower_to_upper(Eigen::Ref<Eigen::MatrixXd> P);
 
 }  // namespace lmf::spmap

@@ -166,12 +166,13 @@ TEST(GlobalStateTest, EkfUpdateMatchesDenseFormulaAndDropsRedundantRows) {
   const Eigen::MatrixXd expected = P - W * H * P;
 
   GlobalState copy = f.state;
-  const StateUpdateReport once = copy.ekf_update({m}, 1e-9, 0.0);
+  const spmap::UpdateReport once = spmap::ekf_update(copy, {&m, 1}, spmap::CarefulTolerance{1e-9, 0.0});
   EXPECT_EQ(once.rows, 2);
   EXPECT_EQ(once.rows_dropped, 0);
   EXPECT_TRUE(matrices_near(copy.full_covariance(), expected, 1e-12));
 
-  const StateUpdateReport twice = f.state.ekf_update({m, m}, 1e-9, 0.0);
+  const std::vector<spmap::ImplicitMeasurement> both = {m, m};
+  const spmap::UpdateReport twice = spmap::ekf_update(f.state, both, spmap::CarefulTolerance{1e-9, 0.0});
   EXPECT_EQ(twice.rows, 4);
   EXPECT_EQ(twice.rows_dropped, 2);
   EXPECT_EQ(twice.rows_kept, 2);
@@ -180,7 +181,7 @@ TEST(GlobalStateTest, EkfUpdateMatchesDenseFormulaAndDropsRedundantRows) {
   EXPECT_FALSE(is_near(f.state.entity(f.ids[5]).location, copy.entity(f.ids[5]).location, 0.0, 0.0) &&
                is_near(f.state.entity(f.ids[1]).location, Pose2(0.5, 0.1, 0.2), 0.0, 0.0));
   EXPECT_TRUE(is_near(f.state.entity(f.ids[5]).location, copy.entity(f.ids[5]).location, 1e-9, 1e-9));
-  EXPECT_TRUE(matrices_near(f.state.gather_PHt({m}), f.state.full_covariance() * H.transpose(), 1e-12));
+  EXPECT_TRUE(matrices_near(spmap::gather_PHt(f.state, {&m, 1}), f.state.full_covariance() * H.transpose(), 1e-12));
 }
 
 }  // namespace
