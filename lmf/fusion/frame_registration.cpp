@@ -28,6 +28,16 @@ void FrameRegistrationConfig::validate() const {
 
 namespace {
 
+// Bounds on the search's work, far above any real local map's needs (a
+// hostile one, e.g. a wall 100 km from its frame, took 20 s under ASan): at
+// most kMaxLocalPoints sampled points (the spacing widens beyond 2 r: 820 m of
+// walls at the default 5 cm), and at most 2 kMaxHalfRotations + 1 headings
+// (the step coarsens once the farthest point is beyond kMaxHalfRotations r /
+// window_rad: 128 m at the defaults). The coarser step is reported
+// (angular_step_rad), so the fusion widens the registration's covariance.
+constexpr double kMaxLocalPoints = 8192;
+constexpr double kMaxHalfRotations = 256;
+
 struct SampledPoint {
   Eigen::Vector2d p;  // in the segments' frame
   Eigen::Vector2d n;  // unit normal of its wall
@@ -62,7 +72,9 @@ std::optional<FrameRegistration> register_frame(const std::vector<RegistrationSe
                                                 const std::vector<RegistrationSegment>& global,
                                                 const Pose2& x_WL, const FrameRegistrationConfig& config) {
   const double r = config.resolution_m;
-  const std::vector<SampledPoint> local_points = sample(local, 2.0 * r);
+  double local_length = 0.0;
+  for (const RegistrationSegment& s : local) local_length += s.length_m;
+  const std::vector<SampledPoint> local_points = sample(local, std::max(2.0 * r, local_length / kMaxLocalPoints));
   if (local_points.empty() || global.empty()) return std::nullopt;
   std::vector<Eigen::Vector2d> points;
   points.reserve(local_points.size());
@@ -101,7 +113,7 @@ std::optional<FrameRegistration> register_frame(const std::vector<RegistrationSe
   CorrelativeWindow window;
   window.linear_m = config.window_m;
   window.angular_rad = config.window_rad;
-  window.angular_step_rad = std::min(0.05, r / std::max(farthest, r));
+  window.angular_step_rad = std::max(std::min(0.05, r / std::max(farthest, r)), config.window_rad / kMaxHalfRotations);
   const std::optional<CorrelativeResult> search =
       correlative_search(field, points, x_WL, window, config.min_score, config.ambiguity_ratio);
   if (!search) return std::nullopt;

@@ -35,7 +35,8 @@ struct FrameRegistrationConfig {
   double window_rad = 0.1;
   // Cell of the likelihood field and spacing of the sampled points (m); the
   // field's σ is twice this. The angular step is the resolution over the
-  // farthest local point's distance from L_r.
+  // farthest local point's distance from L_r (coarser only for a local map
+  // beyond any real one's reach: frame_registration.cpp, the work bounds).
   double resolution_m = 0.05;
   // A registration is used only if at least this fraction of the local map's
   // points (likelihood-weighted mean) lie on the global map's walls ...
