@@ -3,13 +3,16 @@
 # built-in default configuration (no --config), scored against their references, two cases at a
 # time. Prints one table (lmf-accuracy) and optionally writes it as JSON and markdown.
 #
-#   scripts/accuracy.sh [--smoke] [--json FILE] [--markdown FILE] [--work DIR] [--jobs N]
+#   scripts/accuracy.sh [--quick | --smoke] [--json FILE] [--markdown FILE] [--work DIR] [--jobs N]
 #
 # Cases (datasets from ../shared/datasets relative to the repository, or LMF_DATASETS_DIR):
-#   NAME-noisy / NAME-realodo for belgioioso, freiburg-101, orebro, each with --split 1, 2, 3;
+#   NAME-noisy / NAME-realodo for belgioioso, freiburg-101, orebro, acapulco, infinite-corridor,
+#   each with --split 1, 2, 3;
 #   sim-3r-20min       lmf-sim --robots 3 --seed 1 --duration-s 1200
 #   sim-8r-1h          lmf-sim --robots 8 --seed 4 --duration-s 3600
 #   sim-3r-20min-real  lmf-sim --robots 3 --seed 1 --duration-s 1200 --odometry real
+# --quick: one run per building (realodo, the harder odometry, one robot) and sim-3r-20min:
+#   a few minutes on 2 cores; the full run stays the reference.
 # --smoke: only belgioioso-noisy split 1 and a 2-minute 3-robot real-odometry sim mission.
 # Without the datasets folder the dataset cases are skipped with a message.
 # Binaries come from BUILD_DIR (default build/); scripts/build.sh runs only if one is missing.
@@ -19,12 +22,13 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${BUILD_DIR:-$root/build}
 datasets=${LMF_DATASETS_DIR:-$root/../shared/datasets}
-smoke=0 json_out="" markdown_out="" work="" jobs=2
+smoke=0 quick=0 json_out="" markdown_out="" work="" jobs=2
 
-usage() { sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; }
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --smoke) smoke=1 ;;
+    --quick) quick=1 ;;
     --json) json_out=${2:?--json needs a file}; shift ;;
     --markdown) markdown_out=${2:?--markdown needs a file}; shift ;;
     --work) work=${2:?--work needs a folder}; shift ;;
@@ -34,6 +38,7 @@ while [[ $# -gt 0 ]]; do
   esac
   shift
 done
+[[ $smoke == 1 && $quick == 1 ]] && { echo "accuracy.sh: --quick and --smoke exclude each other" >&2; exit 2; }
 [[ "$jobs" =~ ^[1-9][0-9]*$ ]] || { echo "accuracy.sh: --jobs wants a positive integer" >&2; exit 2; }
 # Output paths are used after a cd-free run, but make them absolute anyway.
 abs() { [[ -z "$1" || "$1" == /* ]] && echo "$1" || echo "$PWD/$1"; }
@@ -72,11 +77,14 @@ sim_case() {  # NAME lmf-sim-arguments
 }
 
 if [[ -d "$datasets" ]]; then
+  buildings=(belgioioso freiburg-101 orebro acapulco infinite-corridor)
   if [[ $smoke == 1 ]]; then
     dataset_case belgioioso noisy 1
+  elif [[ $quick == 1 ]]; then
+    for name in "${buildings[@]}"; do dataset_case "$name" realodo 1; done
   else
     for kind in noisy realodo; do
-      for name in belgioioso freiburg-101 orebro; do
+      for name in "${buildings[@]}"; do
         for split in 1 2 3; do dataset_case "$name" "$kind" "$split"; done
       done
     done
@@ -86,6 +94,8 @@ else
 fi
 if [[ $smoke == 1 ]]; then
   sim_case sim-3r-2min-real "--robots 3 --seed 1 --duration-s 120 --odometry real"
+elif [[ $quick == 1 ]]; then
+  sim_case sim-3r-20min "--robots 3 --seed 1 --duration-s 1200"
 else
   sim_case sim-3r-20min "--robots 3 --seed 1 --duration-s 1200"
   sim_case sim-8r-1h "--robots 8 --seed 4 --duration-s 3600"

@@ -5,6 +5,7 @@ set -euo pipefail
 
 packages=(
   build-essential cmake ninja-build pkg-config git
+  ccache  # scripts/build.sh: a compiler cache that clones in other folders share
   liblcm-dev liblcm-bin
   libeigen3-dev
   libboost-dev libboost-program-options-dev

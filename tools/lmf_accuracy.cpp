@@ -9,11 +9,13 @@
 // Frame registration (report.json fusions[].registration): "relocated" counts the fusions whose
 // frame moved to where the nearby walls put it; "refused" those whose registration disagreed
 // with the predicted frame but was ambiguous or degenerate, so nothing moved.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <exception>
 #include <fstream>
 #include <iostream>
+#include <numbers>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -110,6 +112,33 @@ json read_case(const std::string& name, const std::string& dir) {
       if (!r.value("covariance_always_ok", false)) local_psd = false;
     }
   }
+  // The front end (local maps and scan matches against the reference), over all robots.
+  double lm_nees_sum = 0.0, lm_worst_m = 0.0, lm_worst_rad = 0.0, match_nees_sum = 0.0;
+  long lm_count = 0, match_count = 0, fallbacks = 0;
+  if (ok) {
+    for (const json& r : report.value("robots", json::array())) {
+      for (const json& c : r.value("local_map_consistency", json::array())) {
+        lm_nees_sum += c.value("nees", 0.0);
+        lm_worst_m = std::max(lm_worst_m, c.value("error_m", 0.0));
+        lm_worst_rad = std::max(lm_worst_rad, c.value("error_rad", 0.0));
+        ++lm_count;
+      }
+      const double count = number_at(r, P("/match_nees/count"));
+      const long n = std::isfinite(count) ? static_cast<long>(count) : 0;
+      const double mean = number_at(r, P("/match_nees/mean"));
+      if (n > 0 && std::isfinite(mean)) {
+        match_nees_sum += mean * static_cast<double>(n);
+        match_count += n;
+      }
+      fallbacks += r.value("match_fallbacks", 0L);
+    }
+  }
+  const double none = std::nan("");
+  row["local_map_nees_mean"] = nullable(lm_count > 0 ? lm_nees_sum / static_cast<double>(lm_count) : none);
+  row["local_map_worst_m"] = nullable(lm_count > 0 ? lm_worst_m : none);
+  row["local_map_worst_deg"] = nullable(lm_count > 0 ? lm_worst_rad * 180.0 / std::numbers::pi : none);
+  row["match_nees_mean"] = nullable(match_count > 0 ? match_nees_sum / static_cast<double>(match_count) : none);
+  row["match_fallbacks"] = fallbacks;
   row["odometry_ate_m"] = nullable(odo_n > 0 ? std::sqrt(odo2 / odo_n) : std::nan(""));
   row["robots"] = robots;
   row["robots_joined"] = joined;
@@ -169,6 +198,10 @@ const std::vector<Column>& columns() {
          return std::to_string(r["frames_relocated"].get<long>()) + " / " +
                 std::to_string(r["relocations_refused"].get<long>()) + " / " + std::to_string(r["fusions"].get<long>());
        }},
+      {"LM NEES", [](const json& r) { return cell(r["local_map_nees_mean"], "%.1f"); }},
+      {"LM worst (m / deg)", [](const json& r) { return pair_cell(r["local_map_worst_m"], r["local_map_worst_deg"]); }},
+      {"match NEES", [](const json& r) { return cell(r["match_nees_mean"], "%.1f"); }},
+      {"fallbacks", [](const json& r) { return std::to_string(r["match_fallbacks"].get<long>()); }},
       {"P PSD", [](const json& r) { return std::string(r["psd_throughout"].get<bool>() ? "yes" : "NO"); }},
       {"odom ATE m", [](const json& r) { return cell(r["odometry_ate_m"], "%.2f"); }},
       {"wall s", [](const json& r) { return cell(r["wall_s"], "%.1f"); }},
@@ -253,6 +286,10 @@ int main(int argc, char** argv) {
       all_ok = all_ok && rows.back()["status"] == "ok";
       if (rows.back()["cpu_s"].is_number()) cpu += rows.back()["cpu_s"].get<double>();
     }
+    notes.emplace_back(
+        "LM NEES: mean end-pose NEES of the shipped local maps against the reference (3 if consistent); LM worst: "
+        "the largest local-map end error; match NEES: mean NEES of the scan-matched motions against the "
+        "reference motion (3 if consistent); fallbacks: scans whose match failed (odometry alone)");
     notes.emplace_back(
         "relocated / refused / fusions: fusions whose frame the registration against the nearby map moved; "
         "whose registration disagreed with the predicted frame but was ambiguous or degenerate (nothing moved); "

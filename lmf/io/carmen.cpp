@@ -84,7 +84,7 @@ class LineParser {
 
 // FLASER n r1..rn x y theta odom_x odom_y odom_theta ts host lts
 LaserScan parse_flaser(const std::vector<std::string_view>& f, const LineParser& p,
-                       const CarmenReadOptions& options) {
+                       const CarmenReadOptions& options, Pose2& laser_pose) {
   if (f.size() < 2) p.fail("missing the beam count");
   // A 180° scan needs two beams to define its step (beam_increment_for_180deg).
   const std::size_t n = p.count(f[1], "beam count", 2, kMaxBeams);
@@ -98,7 +98,7 @@ LaserScan parse_flaser(const std::vector<std::string_view>& f, const LineParser&
   scan.ranges_m.reserve(n);
   for (std::size_t i = 0; i < n; ++i) scan.ranges_m.push_back(p.range(f[2 + i], i));
   const std::size_t k = 2 + n;
-  p.pose(f, k, "laser pose");  // validated; the odometry pose is the one we keep
+  laser_pose = p.pose(f, k, "laser pose");
   scan.odometry = p.pose(f, k + 3, "odometry pose");
   scan.utime = p.utime(f[k + 6]);
   p.finite(f[k + 8], "logger timestamp");
@@ -111,7 +111,7 @@ LaserScan parse_flaser(const std::vector<std::string_view>& f, const LineParser&
 // ROBOTLASER1 type start_angle fov resolution max_range accuracy remission_mode
 //             n r1..rn m rem1..remm laser_x laser_y laser_theta robot_x robot_y
 //             robot_theta tv rv forward_safety side_safety turn_axis ts host lts
-LaserScan parse_robotlaser1(const std::vector<std::string_view>& f, const LineParser& p) {
+LaserScan parse_robotlaser1(const std::vector<std::string_view>& f, const LineParser& p, Pose2& laser_pose) {
   if (f.size() < 10) p.fail("line too short (" + std::to_string(f.size()) + " fields)");
   p.finite(f[1], "laser type");
   const double start_angle = p.finite(f[2], "start angle");
@@ -135,7 +135,7 @@ LaserScan parse_robotlaser1(const std::vector<std::string_view>& f, const LinePa
   for (std::size_t i = 0; i < n; ++i) scan.ranges_m.push_back(p.range(f[9 + i], i));
   for (std::size_t i = 0; i < m; ++i) p.finite(f[10 + n + i], "remission " + std::to_string(i));
   const std::size_t k = 10 + n + m;
-  p.pose(f, k, "laser pose");
+  laser_pose = p.pose(f, k, "laser pose");
   scan.odometry = p.pose(f, k + 3, "robot pose");
   for (std::size_t i = 6; i < 11; ++i) p.finite(f[k + i], "velocity/safety field");
   scan.utime = p.utime(f[k + 11]);
@@ -170,10 +170,13 @@ void parse_carmen_line(const std::string& text, const std::filesystem::path& fil
   if (f.empty() || f[0].front() == '#') return;
   const std::string_view type = f[0];
   const LineParser p(file, line_number, type);
+  Pose2 laser_pose;
   if (type == "FLASER") {
-    log.scans.push_back(parse_flaser(f, p, options));
+    log.scans.push_back(parse_flaser(f, p, options, laser_pose));
+    log.laser_poses.push_back(laser_pose);
   } else if (type == "ROBOTLASER1") {
-    log.scans.push_back(parse_robotlaser1(f, p));
+    log.scans.push_back(parse_robotlaser1(f, p, laser_pose));
+    log.laser_poses.push_back(laser_pose);
   } else if (type == "ODOM") {
     log.odometry.push_back(parse_odom(f, p));
   } else if (type == "PARAM") {
@@ -186,6 +189,15 @@ void parse_carmen_line(const std::string& text, const std::filesystem::path& fil
   }
 }
 
+void apply_laser_mounting(CarmenLog& log) {
+  std::vector<Pose2> robot_poses;
+  robot_poses.reserve(log.scans.size());
+  for (const LaserScan& scan : log.scans) robot_poses.push_back(scan.odometry);
+  log.laser_mounting = estimate_laser_mounting(robot_poses, log.laser_poses);
+  if (!log.laser_mounting.x_RS) return;
+  for (LaserScan& scan : log.scans) scan.odometry = compose(scan.odometry, *log.laser_mounting.x_RS);
+}
+
 CarmenLog read_carmen_log(const std::filesystem::path& file, const CarmenReadOptions& options) {
   if (!(options.flaser_max_range_m > 0.0)) {
     throw std::invalid_argument("read_carmen_log: flaser_max_range_m must be positive");
@@ -194,6 +206,7 @@ CarmenLog read_carmen_log(const std::filesystem::path& file, const CarmenReadOpt
   for_each_line(file, [&](const std::string& text, std::size_t line_number) {
     parse_carmen_line(text, file, line_number, options, log);
   });
+  if (options.use_laser_mounting) apply_laser_mounting(log);
   return log;
 }
 

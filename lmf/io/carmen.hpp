@@ -9,7 +9,9 @@
 //   ODOM x y theta tv rv accel ts host lts
 //   PARAM name value ts host lts
 // FLASER beams span 180° from -90°, step from beam_increment_for_180deg().
-// Scans carry the `odom_*` (FLASER) / `robot_*` (ROBOTLASER1) pose as LaserScan::odometry.
+// Scans carry the `odom_*` (FLASER) / `robot_*` (ROBOTLASER1) pose as LaserScan::odometry,
+// composed with the laser's mounting where the log's laser poses show a rigid
+// one (laser_mounting.hpp; lmf's robot frame is the laser's).
 #pragma once
 
 #include <cstdint>
@@ -20,6 +22,7 @@
 #include <vector>
 
 #include "lmf/geometry/pose2.hpp"
+#include "lmf/io/laser_mounting.hpp"
 #include "lmf/scan/laser_scan.hpp"
 
 namespace lmf::io {
@@ -43,6 +46,8 @@ struct OdometryRecord {
 
 struct CarmenLog {
   std::vector<LaserScan> scans;                  // FLASER and ROBOTLASER1, in file order
+  std::vector<Pose2> laser_poses;                // each scan's laser pose field, as written
+  LaserMounting laser_mounting;                  // found by read_carmen_log (apply_laser_mounting)
   std::vector<OdometryRecord> odometry;          // ODOM lines
   std::map<std::string, std::string> params;     // PARAM name -> value (last wins)
   std::map<std::string, std::size_t> skipped;    // other line types -> count (comments excluded)
@@ -52,6 +57,8 @@ struct CarmenReadOptions {
   // Readings at or above max_range_m - margin are "no return"; FLASER has no max
   // range field, so it comes from here. 80 m covers the datasets' sensors.
   double flaser_max_range_m = 81.0;
+  // Compose each scan's robot pose with the laser's mounting (apply_laser_mounting).
+  bool use_laser_mounting = true;
 };
 
 // Reads a whole log (plain or gzip; any line length). `#` comments and blank
@@ -59,6 +66,11 @@ struct CarmenReadOptions {
 // or missing ranges, wrong counts, unparsable numbers) and std::runtime_error
 // when the file cannot be opened or decompressed.
 CarmenLog read_carmen_log(const std::filesystem::path& file, const CarmenReadOptions& options = {});
+
+// Estimates the laser's mounting from the scans' robot and laser poses
+// (estimate_laser_mounting) into log.laser_mounting and, where it is rigid,
+// moves every scan's odometry pose to the laser's: x_OR ⊕ x_RS.
+void apply_laser_mounting(CarmenLog& log);
 
 // Parses one line (no trailing newline) into `log`; `file`/`line_number` only feed error messages.
 void parse_carmen_line(const std::string& text, const std::filesystem::path& file, std::size_t line_number,

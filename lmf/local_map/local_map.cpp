@@ -156,11 +156,15 @@ ScanReport LocalMap::update_with(int64_t utime, const Pose2& odometry, const std
   report.map_segments = static_cast<int>(num_segments());
   report.x_LR = x_LR();
   ++scans_;
-  if (config_.covariance_check_interval > 0 && scans_ % config_.covariance_check_interval == 0) {
+  report.should_ship = should_ship();  // step 10: the caller ships and resets
+  // Supervision: every covariance_check_interval scans, and always on the scan
+  // that ships, so no map leaves unchecked (LocalMapConfig).
+  const bool check_due =
+      config_.covariance_check_interval > 0 && scans_ % config_.covariance_check_interval == 0;
+  if (check_due || report.should_ship) {
     report.covariance_checked = true;
     report.covariance_health = check_covariance();
   }
-  report.should_ship = should_ship();  // step 10: the caller ships and resets
   return report;
 }
 
@@ -186,6 +190,8 @@ ScanReport LocalMap::process_scan(const LaserScan& scan) {
     if (match) {
       report.scan_matched = true;
       report.scan_match_points = match->correspondences;
+      report.scan_match_increment = match->x_AB;
+      report.scan_match_covariance = match->covariance;
       report.scan_match_objects_moving = match->objects_moving;
       motion = Motion{match->x_AB, match->covariance};
       if (config_.odometry_learning.enabled) {

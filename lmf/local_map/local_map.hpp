@@ -64,6 +64,9 @@ struct ScanReport {
   bool scan_match_tried = false;
   bool scan_matched = false;
   int scan_match_points = 0;  // points matched (when scan_matched)
+  // The matched motion from the previous scan, x_AB, and its covariance (when scan_matched).
+  Pose2 scan_match_increment;
+  Eigen::Matrix3d scan_match_covariance = Eigen::Matrix3d::Zero();
   // The match left out small foreground objects that moved (ScanMatch::objects_moving).
   bool scan_match_objects_moving = false;
   // Its robust weight in the odometry model learner (LocalMapConfig::odometry_learning;

@@ -46,6 +46,7 @@ void read_local_map_config(io::JsonReader& reader, LocalMapConfig& config) {
     learning->read("scale_prior_std", c.scale_prior_std, io::positive());
     learning->read("heading_bias_prior_std_rad_per_m", c.heading_bias_prior_std_rad_per_m, io::positive());
     learning->read("max_scale_error", c.max_scale_error, io::in_open(0.0, 1.0));
+    learning->read("max_heading_bias_rad_per_m", c.max_heading_bias_rad_per_m, io::non_negative());
   }
   if (io::JsonReader* see_through = reader.optional_section("see_through")) {
     see_through->read("enabled", config.see_through.enabled);

@@ -139,6 +139,8 @@ void OdometryLearningConfig::validate() const {
           "heading_bias_prior_std_rad_per_m", heading_bias_prior_std_rad_per_m, "finite and > 0");
   require(std::isfinite(max_scale_error) && max_scale_error > 0.0 && max_scale_error < 1.0, "max_scale_error",
           max_scale_error, "in (0, 1)");
+  require(std::isfinite(max_heading_bias_rad_per_m) && max_heading_bias_rad_per_m >= 0.0,
+          "max_heading_bias_rad_per_m", max_heading_bias_rad_per_m, "finite and >= 0");
 }
 
 Eigen::VectorXd non_negative_least_squares(const Eigen::MatrixXd& M, const Eigen::VectorXd& b) {
@@ -283,7 +285,9 @@ OdometryErrorModel OdometryModelLearner::sweep() const {
   const double max_error = config_.max_scale_error;
   next.translation_scale = 1.0 + std::clamp(theta(0), -max_error, max_error);
   next.rotation_scale = 1.0 + std::clamp(theta(1), -max_error, max_error);
-  next.heading_bias_rad_per_m = theta.allFinite() ? theta(2) : model_.heading_bias_rad_per_m;
+  const double max_bias = config_.max_heading_bias_rad_per_m;
+  next.heading_bias_rad_per_m =
+      theta.allFinite() ? std::clamp(theta(2), -max_bias, max_bias) : model_.heading_bias_rad_per_m;
   next.x_step_m = std::max(prior_.x_step_m, std::sqrt(cx(0)));
   next.x_per_m = std::sqrt(cx(1));
   next.y_step_m = std::max(prior_.y_step_m, std::sqrt(cy(0)));

@@ -101,6 +101,13 @@ struct OdometryLearningConfig {
   double heading_bias_prior_std_rad_per_m = 0.05;
   // The learned scales stay within 1 ± max_scale_error.
   double max_scale_error = 0.3;
+  // The learned heading bias stays within ± this (rad/m). Physics: unequal
+  // wheel diameters make a differential drive believe it curves when it drives
+  // straight, b = (E_d − 1) / wheelbase; uncalibrated tyres keep E_d within
+  // 1.01 (Borenstein & Feng 1996 report 1.002–1.005), and an indoor mapping
+  // robot's wheelbase is at least 0.3 m: |b| <= 0.01 / 0.3 = 0.033 rad/m (1.9°/m).
+  // A larger learned value is the matcher's error, not the robot's.
+  double max_heading_bias_rad_per_m = 0.035;
 
   // Throws std::invalid_argument naming the first invalid field and its value.
   void validate() const;

@@ -74,6 +74,7 @@ MissionInputs load_logs(const std::vector<std::filesystem::path>& logs, int spli
   for (const auto& file : logs) {
     io::CarmenLog log = io::read_carmen_log(file);
     if (log.scans.empty()) throw std::invalid_argument(file.string() + ": no laser scans");
+    inputs.notes.push_back(log_name(file) + ": " + log.laser_mounting.note);
     const std::size_t parts = static_cast<std::size_t>(split);
     if (log.scans.size() < 2 * parts) {
       throw std::invalid_argument(file.string() + ": " + std::to_string(log.scans.size()) +

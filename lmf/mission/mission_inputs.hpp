@@ -41,6 +41,7 @@ struct MissionInputs {
   std::map<int, std::vector<StampedPose>> reference;   // per robot, for scoring (may be empty)
   std::vector<eval::LineSegment> walls;                // true wall faces (simulator), for the map error
   std::string description;                             // one line for summaries
+  std::vector<std::string> notes;                      // what reading found, one line each (the laser mounting)
 };
 
 // Noise added to the relation between robots (a sighting, or a start pose taken

@@ -64,6 +64,13 @@ const RobotLog* log_of(const MissionInputs& inputs, int robot_id) {
   return nullptr;
 }
 
+json mean_or_null(const std::vector<double>& values) {
+  if (values.empty()) return nullptr;
+  double sum = 0.0;
+  for (const double v : values) sum += v;
+  return sum / static_cast<double>(values.size());
+}
+
 }  // namespace
 
 json odometry_model_json(const OdometryErrorModel& m, const OdometryLearningStats& stats) {
@@ -230,6 +237,7 @@ void write_mission_outputs(const std::filesystem::path& out, const OfflineMissio
 
   json report;
   report["inputs"] = mission.inputs().description;
+  report["input_notes"] = mission.inputs().notes;
   report["map"] = map_counts_json(mission.global_map().counts());
   json robots = json::array();
   for (const RobotResult& r : result.robots) {
@@ -244,7 +252,10 @@ void write_mission_outputs(const std::filesystem::path& out, const OfflineMissio
                       {"covariance_always_ok", r.covariance_always_ok},
                       {"first_covariance_problem", r.first_covariance_problem},
                       {"odometry_model", odometry_model_json(r.odometry_model, r.odometry_learning)},
-                      {"local_map_consistency", consistency_json(r.local_map_consistency)}});
+                      {"local_map_consistency", consistency_json(r.local_map_consistency)},
+                      {"scan_matches", r.scan_matches},
+                      {"match_fallbacks", r.match_fallbacks},
+                      {"match_nees", {{"count", r.match_nees.size()}, {"mean", mean_or_null(r.match_nees)}}}});
   }
   report["robots"] = robots;
   report["fusion_timing"] = timing_json(result.fusion_timing);
@@ -288,6 +299,7 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
   std::ostringstream s;
   char line[256];
   s << "lmf-offline: " << mission.inputs().description << "\n";
+  for (const std::string& note : mission.inputs().notes) s << "  " << note << "\n";
   s << "robot                      joined  scans  maps  p50 ms  p99 ms  max ms   ATE m  odom ATE m\n";
   for (const RobotResult& r : result.robots) {
     const RobotScore* rs = nullptr;
@@ -320,6 +332,16 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
                   "maps; worst end error %.3f m, %.2f deg\n",
                   r.name.c_str(), mean, nees[nees.size() / 2], nees.size(), worst_m, worst_rad * 180.0 / 3.14159265358979);
     s << line;
+  }
+  for (const RobotResult& r : result.robots) {
+    if (r.scan_matches + r.match_fallbacks == 0) continue;
+    s << r.name << " scan matches: " << r.scan_matches << ", fallbacks to odometry: " << r.match_fallbacks;
+    if (!r.match_nees.empty()) {
+      std::snprintf(line, sizeof line, "; match NEES mean %.1f (3 if consistent) over %zu matches with a reference",
+                    mean_or_null(r.match_nees).get<double>(), r.match_nees.size());
+      s << line;
+    }
+    s << "\n";
   }
   for (const RobotResult& r : result.robots) {
     s << r.name << " odometry model: " << describe(r.odometry_model) << " (" << r.odometry_learning.increments

@@ -119,6 +119,10 @@ void OfflineMission::process_scan(Agent& agent, RobotResult& result) {
   const auto start = std::chrono::steady_clock::now();
   const ScanReport report = agent.local_map.process_scan(scan);
   result.scan_times_ms.push_back(elapsed_ms(start));
+  if (report.scan_match_tried) ++(report.scan_matched ? result.scan_matches : result.match_fallbacks);
+  if (report.scan_matched && agent.next_scan >= 2) {
+    check_match(report, agent.log->scans[agent.next_scan - 2].utime, scan.utime, result);
+  }
   ++result.scans;
   result.segments_seen_through += static_cast<std::size_t>(report.segments_seen_through);
   if (!report.covariance_health.ok() && result.covariance_always_ok) {
@@ -141,18 +145,30 @@ void OfflineMission::ship(Agent& agent, RobotResult& result) {
   record(global_map_.fuse(snapshot));  // lockstep: fused before the next scan
 }
 
+std::optional<Pose2> OfflineMission::reference_pose(int robot_id, std::int64_t utime) const {
+  // The reference is matched to scans by time (mission_inputs.hpp).
+  const auto ref = inputs_.reference.find(robot_id);
+  if (ref == inputs_.reference.end()) return std::nullopt;
+  const auto it = std::lower_bound(ref->second.begin(), ref->second.end(), utime,
+                                   [](const StampedPose& p, std::int64_t t) { return p.utime < t; });
+  if (it == ref->second.end() || it->utime != utime) return std::nullopt;
+  return it->pose;
+}
+
+void OfflineMission::check_match(const ScanReport& report, std::int64_t previous_utime, std::int64_t utime,
+                                 RobotResult& result) const {
+  const std::optional<Pose2> before = reference_pose(result.robot_id, previous_utime);
+  const std::optional<Pose2> after = reference_pose(result.robot_id, utime);
+  if (!before || !after) return;
+  const std::optional<double> nees =
+      pose_nees(report.scan_match_increment, report.scan_match_covariance, between(*before, *after));
+  if (nees) result.match_nees.push_back(*nees);
+}
+
 void OfflineMission::check_consistency(const LocalMapSnapshot& snapshot, RobotResult& result) const {
-  const auto ref = inputs_.reference.find(snapshot.robot_id);
-  if (ref == inputs_.reference.end() || ref->second.empty() || snapshot.covariance.rows() < 3) return;
-  // The reference pose at a scan time (the reference is matched to scans by time).
-  const auto pose_at = [&](std::int64_t utime) -> std::optional<Pose2> {
-    const auto it = std::lower_bound(ref->second.begin(), ref->second.end(), utime,
-                                     [](const StampedPose& p, std::int64_t t) { return p.utime < t; });
-    if (it == ref->second.end() || it->utime != utime) return std::nullopt;
-    return it->pose;
-  };
-  const std::optional<Pose2> start = pose_at(snapshot.first_utime);
-  const std::optional<Pose2> end = pose_at(snapshot.last_utime);
+  if (snapshot.covariance.rows() < 3) return;
+  const std::optional<Pose2> start = reference_pose(snapshot.robot_id, snapshot.first_utime);
+  const std::optional<Pose2> end = reference_pose(snapshot.robot_id, snapshot.last_utime);
   if (!start || !end) return;
   const Pose2 truth = between(*start, *end);
   const std::optional<double> nees = pose_nees(snapshot.x_LR, snapshot.covariance.topLeftCorner<3, 3>(), truth);

@@ -61,6 +61,9 @@ struct RobotResult {
   bool covariance_always_ok = true;     // every scan's covariance check passed
   std::string first_covariance_problem;
   std::vector<LocalMapConsistency> local_map_consistency;  // shipped maps with a reference and P_RR > 0
+  std::size_t scan_matches = 0;         // scans whose motion came from the scan match
+  std::size_t match_fallbacks = 0;      // scans whose match was tried and failed (odometry alone)
+  std::vector<double> match_nees;       // per match with a reference: NEES of x_AB with its covariance (3 dof)
   OdometryErrorModel odometry_model;    // the agent's learned model at the end
   OdometryLearningStats odometry_learning;
 };
@@ -102,6 +105,11 @@ class OfflineMission {
   void process_scan(Agent& agent, RobotResult& result);
   void ship(Agent& agent, RobotResult& result);
   void check_consistency(const LocalMapSnapshot& snapshot, RobotResult& result) const;
+  // The matched motion of a scan against the reference motion from the scan before.
+  void check_match(const ScanReport& report, std::int64_t previous_utime, std::int64_t utime,
+                   RobotResult& result) const;
+  // The reference pose of a robot at a scan time (nullopt without one).
+  std::optional<Pose2> reference_pose(int robot_id, std::int64_t utime) const;
   void record(const std::vector<fusion::FusionReport>& reports);
   void apply_sighting(const SightingInput& sighting);
 

@@ -497,7 +497,43 @@ TEST(LocalMapSupervision, CovarianceIsCheckedAtTheConfiguredInterval) {
   EXPECT_TRUE(r2.covariance_health.ok());
   EXPECT_TRUE(r2.covariance_health.symmetric);
   EXPECT_TRUE(lm.check_covariance().ok());
-  EXPECT_TRUE(LocalMap().update(0, Pose2(), {}).covariance_checked);  // default: every scan
+  // The default checks one scan in covariance_check_interval, not every scan.
+  const std::size_t interval = LocalMapConfig().covariance_check_interval;
+  ASSERT_GT(interval, 1u);
+  LocalMap by_default;
+  std::size_t checked = 0;
+  for (std::size_t k = 0; k < interval; ++k) {
+    checked += by_default.update(static_cast<int64_t>(k) * kScanPeriodUs, Pose2(), {}).covariance_checked ? 1 : 0;
+  }
+  EXPECT_EQ(checked, 1u);
+}
+
+// Whatever the interval (here: never between ships), the scan that makes the
+// map ship checks P, so an indefinite covariance is caught before it leaves.
+TEST(LocalMapSupervision, ALossOfPositiveSemidefinitenessIsCaughtOnTheScanThatShips) {
+  for (const std::size_t interval : {std::size_t{0}, std::size_t{1000}}) {
+    LocalMapConfig config;
+    config.covariance_check_interval = interval;
+    config.ship_distance_m = 1.0;
+    LocalMap lm(config);
+    lm.update(0, Pose2(), {});
+    // A segment far from the path whose covariance is indefinite (eigenvalues 1.01e-2 and -0.99e-2).
+    Eigen::Matrix2d indefinite;
+    indefinite << 1e-4, 1e-2, 1e-2, 1e-4;
+    lm.add_segment_for_test(Pose2(0.0, 50.0, 0.0), 2.0, indefinite);
+    ScanReport report;
+    int scans = 1;
+    for (; scans < 10 && !report.should_ship; ++scans) {
+      report = lm.update(scans * kScanPeriodUs, Pose2(0.3 * scans, 0.0, 0.0), {});
+      if (!report.should_ship) {
+        EXPECT_FALSE(report.covariance_checked) << "interval " << interval;
+      }
+    }
+    ASSERT_TRUE(report.should_ship) << "interval " << interval;
+    EXPECT_TRUE(report.covariance_checked) << "interval " << interval;
+    EXPECT_FALSE(report.covariance_health.ok()) << "interval " << interval;
+    EXPECT_FALSE(report.covariance_health.positive_semidefinite) << "interval " << interval;
+  }
 }
 
 TEST(LocalMapInput, MalformedObservationsAreSkippedAndBadOdometryThrows) {

@@ -186,6 +186,22 @@ TEST(OdometryModelLearner, RecoversSystematicAndRandomErrorsFromAPaperPrior) {
   EXPECT_EQ(learner.stats().increments, 400u);
 }
 
+// A heading bias beyond what unequal wheels can cause (0.1 rad/m, 5.7°/m, as
+// a matcher that keeps rotating its scans would report) is learned only up to
+// the physical bound.
+TEST(OdometryModelLearner, TheHeadingBiasStaysWithinItsPhysicalBound) {
+  Simulation sim;
+  sim.truth = real_robot();
+  sim.truth.heading_bias_rad_per_m = 0.1;
+  const OdometryModelLearner learner = sim.run(paper_prior(), 300);
+  const double bound = OdometryLearningConfig{}.max_heading_bias_rad_per_m;
+  EXPECT_GT(bound, 0.0);
+  EXPECT_NEAR(learner.model().heading_bias_rad_per_m, bound, 1e-12);
+  // Inside the bound it is learned as before.
+  sim.truth.heading_bias_rad_per_m = -0.5 * bound;
+  EXPECT_NEAR(sim.run(paper_prior(), 300).model().heading_bias_rad_per_m, -0.5 * bound, 0.012);
+}
+
 TEST(OdometryModelLearner, GlitchesAreDownweightedNotLearnedAsNoise) {
   Simulation clean;
   clean.truth = real_robot();
