@@ -43,9 +43,15 @@ class LineParser {
     return v;
   }
 
-  double range(std::string_view field, std::size_t index) const {
-    const std::string name = "range " + std::to_string(index);
-    const double v = finite(field, name);
+  // A range reading. NaN and ±infinity are what lasers and their drivers
+  // write for a beam with no return: read as `no_return` (the scan's maximum
+  // range, which means "no return") and counted, never an error.
+  double range(std::string_view field, std::size_t index, double no_return, std::size_t& no_returns) const {
+    const double v = raw_number(field, "range " + std::to_string(index));
+    if (!std::isfinite(v)) {
+      ++no_returns;
+      return no_return;
+    }
     if (v < 0.0) fail("negative range " + std::string(field) + " (range " + std::to_string(index) + ")");
     return v;
   }
@@ -84,7 +90,7 @@ class LineParser {
 
 // FLASER n r1..rn x y theta odom_x odom_y odom_theta ts host lts
 LaserScan parse_flaser(const std::vector<std::string_view>& f, const LineParser& p,
-                       const CarmenReadOptions& options, Pose2& laser_pose) {
+                       const CarmenReadOptions& options, Pose2& laser_pose, std::size_t& no_returns) {
   if (f.size() < 2) p.fail("missing the beam count");
   // A 180° scan needs two beams to define its step (beam_increment_for_180deg).
   const std::size_t n = p.count(f[1], "beam count", 2, kMaxBeams);
@@ -96,7 +102,9 @@ LaserScan parse_flaser(const std::vector<std::string_view>& f, const LineParser&
   }
   LaserScan scan;
   scan.ranges_m.reserve(n);
-  for (std::size_t i = 0; i < n; ++i) scan.ranges_m.push_back(p.range(f[2 + i], i));
+  for (std::size_t i = 0; i < n; ++i) {
+    scan.ranges_m.push_back(p.range(f[2 + i], i, options.flaser_max_range_m, no_returns));
+  }
   const std::size_t k = 2 + n;
   laser_pose = p.pose(f, k, "laser pose");
   scan.odometry = p.pose(f, k + 3, "odometry pose");
@@ -111,7 +119,8 @@ LaserScan parse_flaser(const std::vector<std::string_view>& f, const LineParser&
 // ROBOTLASER1 type start_angle fov resolution max_range accuracy remission_mode
 //             n r1..rn m rem1..remm laser_x laser_y laser_theta robot_x robot_y
 //             robot_theta tv rv forward_safety side_safety turn_axis ts host lts
-LaserScan parse_robotlaser1(const std::vector<std::string_view>& f, const LineParser& p, Pose2& laser_pose) {
+LaserScan parse_robotlaser1(const std::vector<std::string_view>& f, const LineParser& p, Pose2& laser_pose,
+                            std::size_t& no_returns) {
   if (f.size() < 10) p.fail("line too short (" + std::to_string(f.size()) + " fields)");
   p.finite(f[1], "laser type");
   const double start_angle = p.finite(f[2], "start angle");
@@ -132,7 +141,7 @@ LaserScan parse_robotlaser1(const std::vector<std::string_view>& f, const LinePa
   }
   LaserScan scan;
   scan.ranges_m.reserve(n);
-  for (std::size_t i = 0; i < n; ++i) scan.ranges_m.push_back(p.range(f[9 + i], i));
+  for (std::size_t i = 0; i < n; ++i) scan.ranges_m.push_back(p.range(f[9 + i], i, max_range, no_returns));
   for (std::size_t i = 0; i < m; ++i) p.finite(f[10 + n + i], "remission " + std::to_string(i));
   const std::size_t k = 10 + n + m;
   laser_pose = p.pose(f, k, "laser pose");
@@ -172,10 +181,10 @@ void parse_carmen_line(const std::string& text, const std::filesystem::path& fil
   const LineParser p(file, line_number, type);
   Pose2 laser_pose;
   if (type == "FLASER") {
-    log.scans.push_back(parse_flaser(f, p, options, laser_pose));
+    log.scans.push_back(parse_flaser(f, p, options, laser_pose, log.no_return_readings));
     log.laser_poses.push_back(laser_pose);
   } else if (type == "ROBOTLASER1") {
-    log.scans.push_back(parse_robotlaser1(f, p, laser_pose));
+    log.scans.push_back(parse_robotlaser1(f, p, laser_pose, log.no_return_readings));
     log.laser_poses.push_back(laser_pose);
   } else if (type == "ODOM") {
     log.odometry.push_back(parse_odom(f, p));
@@ -203,8 +212,21 @@ CarmenLog read_carmen_log(const std::filesystem::path& file, const CarmenReadOpt
     throw std::invalid_argument("read_carmen_log: flaser_max_range_m must be positive");
   }
   CarmenLog log;
-  for_each_line(file, [&](const std::string& text, std::size_t line_number) {
-    parse_carmen_line(text, file, line_number, options, log);
+  // A last line without its newline that does not parse was cut while the
+  // logger wrote it (the logger was killed): the log is read up to it and the
+  // cut is reported. Any other bad line is an error.
+  for_each_line(file, [&](const std::string& text, std::size_t line_number, bool terminated) {
+    if (terminated) {
+      parse_carmen_line(text, file, line_number, options, log);
+      return;
+    }
+    const std::size_t no_returns_before = log.no_return_readings;
+    try {
+      parse_carmen_line(text, file, line_number, options, log);
+    } catch (const CarmenParseError& e) {
+      log.no_return_readings = no_returns_before;  // the cut line adds nothing
+      log.cut_short = std::string(e.what()) + " (the last line, without its newline: the log was cut there; read up to it)";
+    }
   });
   if (options.use_laser_mounting) apply_laser_mounting(log);
   return log;

@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -48,6 +49,8 @@ struct CarmenLog {
   std::vector<LaserScan> scans;                  // FLASER and ROBOTLASER1, in file order
   std::vector<Pose2> laser_poses;                // each scan's laser pose field, as written
   LaserMounting laser_mounting;                  // found by read_carmen_log (apply_laser_mounting)
+  std::size_t no_return_readings = 0;            // NaN or infinite ranges, read as "no return"
+  std::optional<std::string> cut_short;          // the last line was cut mid-line: why it did not parse
   std::vector<OdometryRecord> odometry;          // ODOM lines
   std::map<std::string, std::string> params;     // PARAM name -> value (last wins)
   std::map<std::string, std::size_t> skipped;    // other line types -> count (comments excluded)
@@ -62,9 +65,13 @@ struct CarmenReadOptions {
 };
 
 // Reads a whole log (plain or gzip; any line length). `#` comments and blank
-// lines are ignored; FLASER needs 2..4096 beams. Throws CarmenParseError on a malformed line (NaN, negative
-// or missing ranges, wrong counts, unparsable numbers) and std::runtime_error
-// when the file cannot be opened or decompressed.
+// lines are ignored; FLASER needs 2..4096 beams. A NaN or infinite range is a
+// beam with no return (no_return_readings), not an error. A last line without
+// its newline that does not parse was cut by a killed logger: the log is read
+// up to it (cut_short says why). Throws CarmenParseError on any other
+// malformed line (negative or missing ranges, wrong counts, unparsable or
+// non-finite numbers elsewhere) and std::runtime_error when the file cannot be
+// opened or decompressed.
 CarmenLog read_carmen_log(const std::filesystem::path& file, const CarmenReadOptions& options = {});
 
 // Estimates the laser's mounting from the scans' robot and laser poses

@@ -61,6 +61,11 @@ LaserMounting estimate_laser_mounting(const std::vector<Pose2>& robot_poses, con
     out.note = note.str();
     return out;
   }
+  if (!(std::hypot(x_RS.x, x_RS.y) <= tolerance.max_offset_m)) {
+    out.note = "laser pose not used: its offset from the robot pose " + describe(x_RS) + " is constant but farther than " +
+               std::to_string(tolerance.max_offset_m) + " m, so it is a frame offset, not a mount";
+    return out;
+  }
   if (is_near(x_RS, Pose2(), tolerance.translation_m, tolerance.rotation_rad)) {
     out.note = "laser at the robot's pose (no mounting offset in the log)";
     return out;

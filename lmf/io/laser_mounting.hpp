@@ -29,6 +29,9 @@ struct LaserMountingTolerance {
   double rotation_rad = 0.02;
   // Scans allowed outside the band (a glitch in a pose field), as a fraction.
   double outlier_fraction = 0.05;
+  // A laser sits on the robot: a rigid offset farther than this from the
+  // robot's origin (m) is two frames that differ by a constant, not a mount.
+  double max_offset_m = 2.0;
 };
 
 struct LaserMounting {

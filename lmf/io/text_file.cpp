@@ -21,6 +21,12 @@ std::string errno_text() { return errno != 0 ? std::strerror(errno) : "out of me
 
 void for_each_line(const std::filesystem::path& file,
                    const std::function<void(const std::string& text, std::size_t line_number)>& on_line) {
+  for_each_line(file, [&](const std::string& text, std::size_t line_number, bool) { on_line(text, line_number); });
+}
+
+void for_each_line(
+    const std::filesystem::path& file,
+    const std::function<void(const std::string& text, std::size_t line_number, bool terminated)>& on_line) {
   errno = 0;
   gzFile in = gzopen(file.c_str(), "rb");
   if (in == nullptr) throw std::runtime_error("cannot open " + file.string() + ": " + errno_text());
@@ -35,10 +41,10 @@ void for_each_line(const std::filesystem::path& file,
   // which would shift every later line number in error messages.
   std::string line;
   std::size_t line_number = 0;
-  const auto emit = [&] {
+  const auto emit = [&](bool terminated) {
     ++line_number;
     while (!line.empty() && (line.back() == '\n' || line.back() == '\r')) line.pop_back();
-    on_line(line, line_number);
+    on_line(line, line_number, terminated);
     line.clear();
   };
   std::vector<char> chunk(1 << 16);
@@ -64,11 +70,11 @@ void for_each_line(const std::filesystem::path& file,
       }
       const auto end = static_cast<std::size_t>(static_cast<const char*>(newline) - data);
       line.append(data + start, end - start);
-      emit();
+      emit(true);
       start = end + 1;
     }
   }
-  if (!line.empty()) emit();  // a last line without newline
+  if (!line.empty()) emit(false);  // a last line without newline
 }
 
 void write_text_file(const std::filesystem::path& file, const std::string& text, bool gzip) {

@@ -19,6 +19,11 @@ namespace lmf::io {
 // exceptions from `on_line` pass through.
 void for_each_line(const std::filesystem::path& file,
                    const std::function<void(const std::string& text, std::size_t line_number)>& on_line);
+// The same, also telling whether the line ended with a newline (false only
+// for a last line without one: a file cut while it was being written).
+void for_each_line(
+    const std::filesystem::path& file,
+    const std::function<void(const std::string& text, std::size_t line_number, bool terminated)>& on_line);
 
 // Writes `text` to `file`, gzip-compressed when `gzip` is true or the name ends
 // in ".gz". Throws std::runtime_error on I/O errors.

@@ -75,6 +75,11 @@ MissionInputs load_logs(const std::vector<std::filesystem::path>& logs, int spli
     io::CarmenLog log = io::read_carmen_log(file);
     if (log.scans.empty()) throw std::invalid_argument(file.string() + ": no laser scans");
     inputs.notes.push_back(log_name(file) + ": " + log.laser_mounting.note);
+    if (log.no_return_readings > 0) {
+      inputs.notes.push_back(log_name(file) + ": " + std::to_string(log.no_return_readings) +
+                             " NaN or infinite ranges read as \"no return\"");
+    }
+    if (log.cut_short) inputs.notes.push_back(log_name(file) + ": CUT SHORT: " + *log.cut_short);
     const std::size_t parts = static_cast<std::size_t>(split);
     if (log.scans.size() < 2 * parts) {
       throw std::invalid_argument(file.string() + ": " + std::to_string(log.scans.size()) +

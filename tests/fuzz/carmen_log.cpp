@@ -33,10 +33,12 @@ LineByLine parse_lines(std::string_view text, const std::filesystem::path& file)
     std::string line(text.substr(start, end - start));
     while (!line.empty() && (line.back() == '\r' || line.back() == '\n')) line.pop_back();
     ++line_number;
+    const bool terminated = end < text.size();
     try {
       lmf::io::parse_carmen_line(line, file, line_number, {}, out.log);
     } catch (const lmf::io::CarmenParseError&) {
-      out.error_line = line_number;
+      // A last line without its newline that does not parse was cut: read up to it.
+      if (terminated) out.error_line = line_number;
       return out;
     }
     start = end + 1;

@@ -168,17 +168,9 @@ struct BadLine {
 TEST(CarmenRead, BadLinesNameFileLineAndProblem) {
   std::string missing_one = flaser(361);
   missing_one.replace(missing_one.find(" 1.5"), 4, "");
-  std::string nan_17 = flaser(20);
-  {
-    std::size_t pos = 0;
-    for (int i = 0; i <= 17; ++i) pos = nan_17.find(" 1.5", pos + 1);
-    nan_17.replace(pos, 4, " nan");
-  }
   const std::vector<BadLine> cases = {
       {missing_one, "FLASER: expected 361 ranges, found 360"},
       {flaser(361) + " 7", "FLASER: expected 361 ranges, found 362"},
-      {nan_17, "range 17 is NaN"},
-      {flaser(5, "inf"), "range 0 is infinite"},
       {flaser(5, "-0.3"), "negative range -0.3"},
       {flaser(5, "1.5x"), "range 0 is not a number: '1.5x'"},
       {flaser(5, "1.5", "1 nan 0"), "laser pose y is NaN"},
@@ -208,6 +200,58 @@ TEST(CarmenRead, BadLinesNameFileLineAndProblem) {
       EXPECT_EQ(e.file(), file);
     }
   }
+  fs::remove(file);
+}
+
+// Lasers write NaN or inf for a beam with no return: a reading, not a format
+// error. It becomes the scan's "no return" value and is counted.
+TEST(CarmenRead, NaNAndInfiniteRangesAreNoReturn) {
+  std::string nan_17 = flaser(20);
+  {
+    std::size_t pos = 0;
+    for (int i = 0; i <= 17; ++i) pos = nan_17.find(" 1.5", pos + 1);
+    nan_17.replace(pos, 4, " nan");
+  }
+  const fs::path file = temp_path("no_return.log");
+  write_text(file, flaser(10) + "\n" + nan_17 + "\n" + flaser(5, "inf") + "\n" + flaser(5, "-inf") + "\n");
+  const CarmenLog log = read_carmen_log(file);
+  ASSERT_EQ(log.scans.size(), 4u);
+  EXPECT_EQ(log.no_return_readings, 11u);
+  const LaserScan& with_nan = log.scans[1];
+  EXPECT_EQ(with_nan.ranges_m[17], with_nan.max_range_m);
+  EXPECT_EQ(with_nan.ranges_m[16], 1.5);
+  for (double r : log.scans[2].ranges_m) EXPECT_EQ(r, log.scans[2].max_range_m);
+  EXPECT_FALSE(log.cut_short.has_value());
+  // Elsewhere a non-finite number is still an error.
+  write_text(file, flaser(5, "1.5", "1 nan 0") + "\n");
+  EXPECT_THROW(read_carmen_log(file), CarmenParseError);
+  fs::remove(file);
+}
+
+// A logger killed while it wrote a line leaves the last line cut and without
+// its newline: the log is read up to it, and the cut is reported. The same
+// line with its newline, or anywhere but last, is an error.
+TEST(CarmenRead, ALastLineCutByAKilledLoggerIsReportedNotFatal) {
+  const std::string good = flaser(181);
+  const std::string cut = good.substr(0, good.size() / 3);
+  const fs::path file = temp_path("cut_line.log");
+  write_text(file, good + "\n" + good + "\n" + cut);
+  const CarmenLog log = read_carmen_log(file);
+  EXPECT_EQ(log.scans.size(), 2u);
+  EXPECT_EQ(log.laser_poses.size(), 2u);
+  ASSERT_TRUE(log.cut_short.has_value());
+  EXPECT_NE(log.cut_short->find(file.string() + ":3: FLASER: expected 181 ranges"), std::string::npos) << *log.cut_short;
+  EXPECT_NE(log.cut_short->find("cut"), std::string::npos) << *log.cut_short;
+
+  write_text(file, good + "\n" + good + "\n" + cut + "\n");
+  EXPECT_THROW(read_carmen_log(file), CarmenParseError);
+  write_text(file, good + "\n" + cut + "\n" + good);
+  EXPECT_THROW(read_carmen_log(file), CarmenParseError);
+  // A whole last line without a newline is simply read.
+  write_text(file, good + "\n" + good);
+  const CarmenLog whole = read_carmen_log(file);
+  EXPECT_EQ(whole.scans.size(), 2u);
+  EXPECT_FALSE(whole.cut_short.has_value());
   fs::remove(file);
 }
 

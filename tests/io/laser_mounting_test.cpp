@@ -82,6 +82,18 @@ TEST(LaserMounting, AFewGlitchedPosesDoNotHideARigidMount) {
   EXPECT_EQ(m.scans_outside, 2u);
 }
 
+// Two frames that differ by a constant far away (a map frame and an odometry
+// frame, say) are rigid too, but no laser sits 50 m from its robot.
+TEST(LaserMounting, AConstantOffsetFarAwayIsNotAMount) {
+  const std::vector<Pose2> robot = robot_path(20);
+  const LaserMounting m = estimate_laser_mounting(robot, laser_path(robot, Pose2(50.0, 0.0, 0.0)));
+  EXPECT_FALSE(m.x_RS.has_value());
+  EXPECT_NE(m.note.find("not a mount"), std::string::npos) << m.note;
+  std::vector<Pose2> huge = robot;
+  for (Pose2& p : huge) p.x = 1e300;
+  EXPECT_FALSE(estimate_laser_mounting(robot, huge).x_RS.has_value());
+}
+
 TEST(LaserMounting, MismatchedLengthsThrow) {
   EXPECT_THROW(estimate_laser_mounting(robot_path(3), robot_path(2)), std::invalid_argument);
   EXPECT_FALSE(estimate_laser_mounting({}, {}).x_RS.has_value());
