@@ -18,6 +18,9 @@ void FrameRegistrationConfig::validate() const {
   require(std::isfinite(window_m) && window_m >= 0.0, "window_m must be finite and >= 0");
   require(std::isfinite(window_rad) && window_rad >= 0.0, "window_rad must be finite and >= 0");
   require(std::isfinite(resolution_m) && resolution_m > 0.0, "resolution_m must be finite and > 0");
+  require(LikelihoodField::levels_for(window_m, resolution_m) <= LikelihoodField::kMaxLevels,
+          "window_m must be at most 63 resolution_m (the search's pyramid holds 2^7 cells per axis): "
+          "narrow window_m or coarsen resolution_m");
   require(std::isfinite(min_score) && min_score > 0.0 && min_score < 1.0, "min_score must be in (0, 1)");
   require(std::isfinite(ambiguity_ratio) && ambiguity_ratio > 0.0 && ambiguity_ratio <= 1.0,
           "ambiguity_ratio must be in (0, 1]");
@@ -106,10 +109,7 @@ std::optional<FrameRegistration> register_frame(const std::vector<RegistrationSe
   region.max().array() += 4.0 * r;
   region = region.intersection(reach);
 
-  const int half_cells = static_cast<int>(std::floor(config.window_m / r + 1e-9));
-  int levels = 1;
-  while ((1 << (levels - 1)) < 2 * half_cells + 1) ++levels;
-  const LikelihoodField field(reference, region, r, 2.0 * r, levels);
+  const LikelihoodField field(reference, region, r, 2.0 * r, LikelihoodField::levels_for(config.window_m, r));
   CorrelativeWindow window;
   window.linear_m = config.window_m;
   window.angular_rad = config.window_rad;

@@ -123,10 +123,19 @@ class BranchAndBound {
 
 }  // namespace
 
+int LikelihoodField::levels_for(double window_m, double resolution_m) {
+  const double cells = std::floor(window_m / resolution_m + 1e-9);
+  if (!(cells >= 0.0) || cells > 1e6) return kMaxLevels + 1;  // NaN, or far beyond any pyramid
+  const int half_cells = static_cast<int>(cells);
+  int levels = 1;
+  while ((1 << (levels - 1)) < 2 * half_cells + 1) ++levels;
+  return levels;
+}
+
 LikelihoodField::LikelihoodField(const std::vector<Eigen::Vector2d>& points, const Eigen::AlignedBox2d& region,
                                  double resolution_m, double sigma_m, int levels)
     : resolution_m_(resolution_m) {
-  if (!(resolution_m > 0.0) || !(sigma_m > 0.0) || levels < 1 || levels > 8) {
+  if (!(resolution_m > 0.0) || !(sigma_m > 0.0) || levels < 1 || levels > kMaxLevels) {
     throw std::invalid_argument("LikelihoodField: resolution and sigma must be > 0, levels in [1, 8]");
   }
   origin_ = region.isEmpty() ? Eigen::Vector2d::Zero() : region.min();

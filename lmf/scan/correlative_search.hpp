@@ -34,7 +34,14 @@ namespace lmf {
 // value. Outside: 0.
 class LikelihoodField {
  public:
-  // Throws std::invalid_argument for a non-positive resolution or sigma, levels < 1.
+  static constexpr int kMaxLevels = 8;
+  // The levels a search of ± window_m at resolution_m needs: enough that one
+  // top-level block spans the window's 2 ⌊window_m / resolution_m⌋ + 1
+  // translations per axis. A window of more than 63 cells needs more than
+  // kMaxLevels: configurations check it when they are read.
+  static int levels_for(double window_m, double resolution_m);
+
+  // Throws std::invalid_argument for a non-positive resolution or sigma, levels outside [1, kMaxLevels].
   LikelihoodField(const std::vector<Eigen::Vector2d>& points, const Eigen::AlignedBox2d& region, double resolution_m,
                   double sigma_m, int levels);
 

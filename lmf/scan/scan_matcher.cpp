@@ -447,11 +447,8 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
   const Eigen::AlignedBox2d region = reach.intersection(reference_bounds);
   if (region.isEmpty()) return std::nullopt;
   // Enough levels that one top-level block spans the window's translations.
-  const int half_cells = static_cast<int>(std::floor(window.linear_m / resolution + 1e-9));
-  int levels = 1;
-  while ((1 << (levels - 1)) < 2 * half_cells + 1) ++levels;
   const LikelihoodField field(config.field_along_lines ? points_along_lines(A, resolution) : A.points(), region,
-                              resolution, resolution, levels);
+                              resolution, resolution, LikelihoodField::levels_for(window.linear_m, resolution));
   const std::optional<CorrelativeResult> search =
       correlative_search(field, search_points, u_hat, window, config.min_overlap, config.ambiguity_ratio);
   if (!search) return std::nullopt;

@@ -121,6 +121,19 @@ TEST(FrameRegistrationTest, AGridOfPillarsIsAmbiguous) {
   EXPECT_FALSE(reg->unresolved.has_value());
 }
 
+// Every window validate() allows runs: the widest registers a frame 2.5 m off.
+TEST(FrameRegistrationTest, TheWidestValidWindowRuns) {
+  FrameRegistrationConfig config;
+  config.window_m = 63 * config.resolution_m;
+  ASSERT_NO_THROW(config.validate());
+  const std::vector<Wall> walls = building();
+  const Pose2 x_WL(2.0, -0.5, 0.3);
+  std::optional<FrameRegistration> reg;
+  ASSERT_NO_THROW(reg = register_frame(in_frame(walls, x_WL), in_world(walls), compose(x_WL, Pose2(2.5, 0.0, 0.0)),
+                                       config));
+  ASSERT_TRUE(reg.has_value());
+}
+
 TEST(FrameRegistrationTest, NothingToRegisterAgainst) {
   const std::vector<Wall> walls = building();
   const Pose2 x_WL(2.0, -0.5, 0.3);
@@ -148,6 +161,11 @@ TEST(FrameRegistrationTest, ConfigValidation) {
   EXPECT_THROW(c.validate(), std::invalid_argument);
   c = {};
   c.own_recent_maps = -1;
+  EXPECT_THROW(c.validate(), std::invalid_argument);
+  c = {};
+  c.window_m = 63 * c.resolution_m;  // the widest window the search's pyramid holds
+  EXPECT_NO_THROW(c.validate());
+  c.window_m = 64 * c.resolution_m;
   EXPECT_THROW(c.validate(), std::invalid_argument);
   GlobalMapConfig g;
   g.registration.window_rad = std::nan("");

@@ -108,6 +108,22 @@ TEST(MissionConfigFile, ReadsTheFrameRegistration) {
   EXPECT_THROW(parse_mission_config(R"({"global_map": {"registration": {"min_score": 2}}})"), std::invalid_argument);
 }
 
+// A registration window the search cannot hold (more than 63 cells of
+// resolution_m per side) is refused when the file is read, naming the key, not
+// in the middle of a mission; the widest one it holds runs.
+TEST(MissionConfigFile, ARegistrationWindowTheSearchCannotHoldIsRefusedWhenRead) {
+  try {
+    parse_mission_config(R"({"global_map": {"registration": {"window_m": 4}}})", "wide.json");
+    FAIL() << "window_m 4 at resolution_m 0.05 was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("window_m"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("wide.json"), std::string::npos) << e.what();
+  }
+  const MissionConfig widest = parse_mission_config(R"({"global_map": {"registration": {"window_m": 3.15}}})");
+  EXPECT_DOUBLE_EQ(widest.global_map.registration.window_m, 3.15);
+  EXPECT_NO_THROW(parse_mission_config(R"({"global_map": {"registration": {"window_m": 4, "resolution_m": 0.1}}})"));
+}
+
 TEST(MissionConfigFile, UnknownKeysAndBadValuesNameTheKey) {
   try {
     parse_mission_config(R"({"local_map": {"ship_distanse_m": 5}})", "robot.json");
