@@ -15,12 +15,12 @@ build_dir=${BUILD_DIR:-$root/build}
 jobs=${JOBS:-$(nproc)}
 
 launcher=()
-if [[ "${LMF_CCACHE:-1}" != 0 ]] && command -v ccache >/dev/null; then
-  export CCACHE_BASEDIR=$root
-  export CCACHE_NOHASHDIR=1
-  export CCACHE_MAXSIZE=${CCACHE_MAXSIZE:-5G}
+export CCACHE_BASEDIR=$root
+export CCACHE_NOHASHDIR=1
+export CCACHE_MAXSIZE=${CCACHE_MAXSIZE:-5G}
+# (A ccache that cannot use its cache folder, e.g. without a home, is left out.)
+if [[ "${LMF_CCACHE:-1}" != 0 ]] && command -v ccache >/dev/null && ccache --zero-stats >/dev/null 2>&1; then
   launcher=(-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
-  ccache --zero-stats >/dev/null
 else
   # An earlier configure with the launcher keeps it in the cache: clear it.
   launcher=(-UCMAKE_C_COMPILER_LAUNCHER -UCMAKE_CXX_COMPILER_LAUNCHER)
