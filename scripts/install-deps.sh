@@ -11,6 +11,7 @@ packages=(
   libboost-dev libboost-program-options-dev
   nlohmann-json3-dev
   zlib1g-dev
+  librosbag-storage-dev libboost-filesystem-dev  # lmf/bag: ROS 1 bags through ROS's own library
   libssl-dev
   libgtest-dev libgmock-dev
   libbenchmark-dev

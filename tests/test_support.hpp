@@ -55,6 +55,15 @@ inline std::optional<std::filesystem::path> datasets_dir() {
   return dir;
 }
 
+// The shared ROS bags folder (beside the datasets: ../shared/bags), or nullopt.
+inline std::optional<std::filesystem::path> bags_dir() {
+  const auto datasets = datasets_dir();
+  if (!datasets) return std::nullopt;
+  const std::filesystem::path dir = *datasets / ".." / "bags";
+  if (!std::filesystem::is_directory(dir)) return std::nullopt;
+  return dir;
+}
+
 }  // namespace lmf::testing
 
 // Skips the current test with a clear message when the datasets are absent.
@@ -65,4 +74,14 @@ inline std::optional<std::filesystem::path> datasets_dir() {
                  << (std::getenv("LMF_DATASETS_DIR") ? std::getenv("LMF_DATASETS_DIR") : "") \
                  << "); skipping data test";                                                  \
   }                                                                                           \
+  const std::filesystem::path dir_var = *dir_var##_opt
+
+// Skips the current test with a clear message when the shared bags are absent.
+#define LMF_REQUIRE_BAGS(dir_var)                                                                  \
+  const auto dir_var##_opt = ::lmf::testing::bags_dir();                                           \
+  if (!dir_var##_opt) {                                                                            \
+    GTEST_SKIP() << "shared bags folder not found (beside LMF_DATASETS_DIR="                       \
+                 << (std::getenv("LMF_DATASETS_DIR") ? std::getenv("LMF_DATASETS_DIR") : "")      \
+                 << "); skipping bag test";                                                        \
+  }                                                                                                \
   const std::filesystem::path dir_var = *dir_var##_opt

@@ -59,8 +59,29 @@ Eigen::Matrix3d SightingNoise::covariance() const {
       .asDiagonal();
 }
 
+RecordedLog read_carmen_recording(const std::filesystem::path& file) {
+  io::CarmenLog log = io::read_carmen_log(file);
+  RecordedLog recording;
+  recording.file = file;
+  recording.name = log_name(file);
+  recording.scans = std::move(log.scans);
+  recording.notes.push_back(log.laser_mounting.note);
+  if (log.no_return_readings > 0) {
+    recording.notes.push_back(std::to_string(log.no_return_readings) + " NaN or infinite ranges read as \"no return\"");
+  }
+  if (log.cut_short) recording.notes.push_back("CUT SHORT: " + *log.cut_short);
+  return recording;
+}
+
 MissionInputs load_logs(const std::vector<std::filesystem::path>& logs, int split,
                         const std::filesystem::path& reference, const SightingNoise& noise) {
+  std::vector<RecordedLog> recordings;
+  for (const auto& file : logs) recordings.push_back(read_carmen_recording(file));
+  return load_recordings(std::move(recordings), split, reference, noise);
+}
+
+MissionInputs load_recordings(std::vector<RecordedLog> logs, int split, const std::filesystem::path& reference,
+                              const SightingNoise& noise) {
   if (logs.empty()) throw std::invalid_argument("load_logs: no log given");
   if (split < 1) throw std::invalid_argument("load_logs: split must be >= 1, got " + std::to_string(split));
   if (split > 1 && logs.size() != 1) throw std::invalid_argument("load_logs: --split needs exactly one log");
@@ -71,15 +92,10 @@ MissionInputs load_logs(const std::vector<std::filesystem::path>& logs, int spli
       reference.empty() ? std::vector<StampedPose>{} : io::read_trajectory(reference);
 
   int next_id = 0;
-  for (const auto& file : logs) {
-    io::CarmenLog log = io::read_carmen_log(file);
+  for (auto& log : logs) {
+    const std::filesystem::path& file = log.file;
     if (log.scans.empty()) throw std::invalid_argument(file.string() + ": no laser scans");
-    inputs.notes.push_back(log_name(file) + ": " + log.laser_mounting.note);
-    if (log.no_return_readings > 0) {
-      inputs.notes.push_back(log_name(file) + ": " + std::to_string(log.no_return_readings) +
-                             " NaN or infinite ranges read as \"no return\"");
-    }
-    if (log.cut_short) inputs.notes.push_back(log_name(file) + ": CUT SHORT: " + *log.cut_short);
+    for (const auto& note : log.notes) inputs.notes.push_back(log.name + ": " + note);
     const std::size_t parts = static_cast<std::size_t>(split);
     if (log.scans.size() < 2 * parts) {
       throw std::invalid_argument(file.string() + ": " + std::to_string(log.scans.size()) +
@@ -90,7 +106,7 @@ MissionInputs load_logs(const std::vector<std::filesystem::path>& logs, int spli
       const std::size_t end = log.scans.size() * (part + 1) / parts;
       RobotLog robot;
       robot.robot_id = next_id++;
-      robot.name = log_name(file) + (split > 1 ? "-part" + std::to_string(part + 1) : "");
+      robot.name = log.name + (split > 1 ? "-part" + std::to_string(part + 1) : "");
       robot.scans.assign(log.scans.begin() + static_cast<std::ptrdiff_t>(begin),
                          log.scans.begin() + static_cast<std::ptrdiff_t>(end));
       if (split > 1) {

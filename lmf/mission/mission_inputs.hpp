@@ -53,6 +53,18 @@ struct SightingNoise {
   Eigen::Matrix3d covariance() const;
 };
 
+// One robot's recording, however it was read (a CARMEN log, a ROS bag).
+struct RecordedLog {
+  std::filesystem::path file;      // named in error messages
+  std::string name;                // the robot's name ("belgioioso-noisy")
+  std::vector<LaserScan> scans;    // in time order
+  std::vector<std::string> notes;  // what reading found, one line each
+};
+
+// A CARMEN log read into a RecordedLog (notes: the laser mounting, "no return"
+// readings, a cut last line). Throws the reader's errors.
+RecordedLog read_carmen_recording(const std::filesystem::path& file);
+
 // One robot per log, or `split` > 1 contiguous parts of a single log. With a
 // reference (`t x y theta` or `index t x y theta`, matched to scans by time), the
 // robots after the first join through a sighting by the first robot at their
@@ -61,6 +73,9 @@ struct SightingNoise {
 // readers' errors (naming file and line) for bad files.
 MissionInputs load_logs(const std::vector<std::filesystem::path>& logs, int split,
                         const std::filesystem::path& reference, const SightingNoise& noise);
+// The same for recordings already read.
+MissionInputs load_recordings(std::vector<RecordedLog> logs, int split, const std::filesystem::path& reference,
+                              const SightingNoise& noise);
 
 // An lmf-sim folder: robotN.log, robotN.gt, sightings.json (true x_AB; noise is
 // added here), for the robots mission.json lists (without mission.json: robot0,

@@ -11,8 +11,17 @@ Eigen::Vector2d LaserScan::beam_point(std::size_t i) const {
   return {ranges_m.at(i) * std::cos(a), ranges_m.at(i) * std::sin(a)};
 }
 
+namespace {
+
+// v rounded to float. Not inlined: GCC 12.2's SLP vectorizer at -O2 drops the
+// rounding of two adjacent fields rounded this way (angle_min_rad and
+// angle_increment_rad came back unrounded; -fno-tree-slp-vectorize restores it;
+// the test LaserScan.AtMessagePrecisionRoundsEveryFloatField catches it).
+[[gnu::noinline]] double as_float(double v) { return static_cast<double>(static_cast<float>(v)); }
+
+}  // namespace
+
 LaserScan at_message_precision(const LaserScan& scan) {
-  const auto as_float = [](double v) { return static_cast<double>(static_cast<float>(v)); };
   LaserScan out = scan;
   out.angle_min_rad = as_float(scan.angle_min_rad);
   out.angle_increment_rad = as_float(scan.angle_increment_rad);
