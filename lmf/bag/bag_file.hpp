@@ -3,6 +3,9 @@
 // summary like `rosbag info` / `ros2 bag info`. Containers:
 //   * ROS 1 bag 2.0 ("#ROSBAG V2.0"), through Debian's librosbag-storage
 //     (uncompressed, bz2 and lz4 chunks, chunks in any order);
+//   * ROS 2 MCAP (mcap_bag.hpp: uncompressed, zstd and lz4 chunks);
+//   * ROS 2 SQLite3 (rosbag2's .db3 files, or their folder with metadata.yaml;
+//     sqlite_bag.hpp), through Debian's libsqlite3.
 // A file in any other format (the pre-2010 "#ROSRECORD V1.2" among them) is
 // refused with BagFormatError.
 //
@@ -12,6 +15,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <set>
 #include <span>
 #include <stdexcept>
@@ -22,7 +26,7 @@
 
 namespace lmf::bag {
 
-enum class BagFormat { ros1 };
+enum class BagFormat { ros1, mcap, sqlite3 };
 const char* to_string(BagFormat format);
 
 // A file that is not a bag lmf reads, or is damaged: what() names the file,
@@ -59,6 +63,10 @@ struct BagSummary {
   std::int64_t start_ns = 0;
   std::int64_t end_ns = 0;
   std::vector<BagTopic> topics;  // by name
+  // The file ends inside a record (its recorder was killed): what was read is
+  // up to there, and this says where. (A ROS 1 bag without its index is refused
+  // by the library instead.)
+  std::optional<std::string> cut_short;
 };
 
 // The format of `file` from its first bytes. Throws BagFormatError when it is
