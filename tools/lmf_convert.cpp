@@ -1,7 +1,8 @@
-// lmf-convert: a CARMEN log as a ROS 1 bag (docs/bags.md), written through
-// Debian's librosbag-storage: the scans, the odometry and the laser's mounting
-// that lmf-offline --bag reads back. See --help.
+// lmf-convert: a CARMEN log as a ROS 1 bag (written through Debian's
+// librosbag-storage) or an MCAP file (docs/bags.md): the scans, the odometry
+// and the laser's mounting that lmf-offline --bag reads back. See --help.
 #include <exception>
+#include <filesystem>
 #include <iostream>
 #include <string>
 
@@ -14,16 +15,16 @@ namespace po = boost::program_options;
 
 int main(int argc, char** argv) {
   po::options_description options(
-      "lmf-convert: writes a CARMEN log as a ROS 1 bag: /scan (sensor_msgs/LaserScan, frame laser),\n"
-      "/odom (nav_msgs/Odometry odom -> base_link; or /tf with --odometry-tf) and /tf_static\n"
-      "(base_link -> laser, the log's laser mounting).\n\n"
-      "Usage: lmf-convert --log FILE --out FILE.bag [--compression none|bz2|lz4] [--odometry-tf]\n\nOptions");
+      "lmf-convert: writes a CARMEN log as a ROS 1 bag (FILE.bag) or an MCAP file (FILE.mcap, ROS 2):\n"
+      "/scan (sensor_msgs/LaserScan, frame laser), /odom (nav_msgs/Odometry odom -> base_link; or /tf\n"
+      "with --odometry-tf) and /tf_static (base_link -> laser, the log's laser mounting).\n\n"
+      "Usage: lmf-convert --log FILE --out FILE.bag|FILE.mcap [--compression C] [--odometry-tf]\n\nOptions");
   std::string log;
   std::string out;
   std::string compression = "none";
   options.add_options()("help,h", "print this help")("log", po::value(&log), "CARMEN log (plain or .gz)")(
       "out", po::value(&out), "the bag to write")("compression", po::value(&compression)->default_value("none"),
-                                                  "chunk compression: none, bz2 or lz4")(
+                                                  "chunk compression: none, bz2 or lz4 (.bag); none or zstd (.mcap)")(
       "odometry-tf", "write the odometry as /tf instead of /odom");
   po::variables_map vm;
   try {
@@ -39,21 +40,16 @@ int main(int argc, char** argv) {
   }
   lmf::bag::ScanBagExportOptions export_options;
   export_options.odometry_as_tf = vm.count("odometry-tf") != 0u;
-  if (compression == "bz2") {
-    export_options.compression = lmf::bag::Ros1BagWriter::Compression::bz2;
-  } else if (compression == "lz4") {
-    export_options.compression = lmf::bag::Ros1BagWriter::Compression::lz4;
-  } else if (compression != "none") {
-    std::cerr << "lmf-convert: --compression must be none, bz2 or lz4, got " << compression << "\n";
-    return 2;
-  }
+  export_options.compression = compression;
+  export_options.format =
+      std::filesystem::path(out).extension() == ".mcap" ? lmf::bag::BagFormat::mcap : lmf::bag::BagFormat::ros1;
   if (log.empty() || out.empty()) {
     std::cerr << "lmf-convert: give --log and --out (see --help)\n";
     return 2;
   }
   try {
     const lmf::io::CarmenLog carmen = lmf::io::read_carmen_log(log);
-    lmf::bag::write_ros1_scan_bag(out, carmen.scans, carmen.laser_mounting.x_RS, export_options);
+    lmf::bag::write_scan_bag(out, carmen.scans, carmen.laser_mounting.x_RS, export_options);
     std::cout << "lmf-convert: " << carmen.scans.size() << " scans from " << log << " written to " << out << "\n";
   } catch (const std::exception& e) {
     std::cerr << "lmf-convert: " << e.what() << "\n";

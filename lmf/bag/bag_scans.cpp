@@ -292,6 +292,7 @@ BagScans read_bag_scans(const std::filesystem::path& file, const BagScanOptions&
     out.scans.push_back(std::move(scan));
   }
   out.notes.push_back("scans: " + scan_topic.name + ", " + std::to_string(out.scans.size()) + " used");
+  if (summary.cut_short) out.notes.push_back("CUT SHORT: " + *summary.cut_short + " (read up to there)");
   if (out.scans_outside_odometry > 0) {
     out.notes.push_back(std::to_string(out.scans_outside_odometry) + " scans outside the odometry's time span dropped");
   }

@@ -1,5 +1,5 @@
-// read_bag_scans against bags written by write_ros1_scan_bag (through
-// librosbag-storage): the scans, their odometry and the laser's mounting come
+// read_bag_scans against bags written by write_scan_bag (ROS 1 through
+// librosbag-storage, and MCAP): the scans, their odometry and the laser's mounting come
 // back as they went in, from /odom or from /tf, compressed or not.
 #include <gtest/gtest.h>
 
@@ -63,17 +63,20 @@ void expect_same_scans(const std::vector<LaserScan>& read, const std::vector<Las
 TEST(BagScans, ScansAndOdometryComeBackFromOdomAndFromTf) {
   TempDir dir;
   const auto scans = synthetic_scans(12);
+  const std::vector<std::pair<BagFormat, std::string>> kinds = {
+      {BagFormat::ros1, "none"}, {BagFormat::ros1, "bz2"}, {BagFormat::ros1, "lz4"},
+      {BagFormat::mcap, "none"}, {BagFormat::mcap, "zstd"}};
   for (const bool as_tf : {false, true}) {
-    for (const auto compression : {Ros1BagWriter::Compression::none, Ros1BagWriter::Compression::bz2,
-                                   Ros1BagWriter::Compression::lz4}) {
-      const auto file = dir.path() / "scans.bag";
+    for (const auto& [format, compression] : kinds) {
+      const auto file = dir.path() / (format == BagFormat::mcap ? "scans.mcap" : "scans.bag");
       ScanBagExportOptions options;
+      options.format = format;
       options.compression = compression;
       options.odometry_as_tf = as_tf;
-      write_ros1_scan_bag(file, scans, std::nullopt, options);
-      const BagScans read = read_bag_scans(file);
-      SCOPED_TRACE(as_tf ? "tf" : "odom");
-      expect_same_scans(read.scans, scans);
+      write_scan_bag(file, scans, std::nullopt, options);
+      SCOPED_TRACE(std::string(to_string(format)) + " " + compression + (as_tf ? " tf" : " odom"));
+      EXPECT_EQ(summarize_bag(file).format, format);
+      expect_same_scans(read_bag_scans(file).scans, scans);
     }
   }
 }
@@ -82,7 +85,7 @@ TEST(BagScans, TheLaserMountingFromTfStaticGivesTheLasersOdometry) {
   TempDir dir;
   const auto scans = synthetic_scans(5);
   const Pose2 x_BL(0.25, -0.05, 0.1);
-  write_ros1_scan_bag(dir.path() / "mounted.bag", scans, x_BL);
+  write_scan_bag(dir.path() / "mounted.bag", scans, x_BL);
   const BagScans read = read_bag_scans(dir.path() / "mounted.bag");
   expect_same_scans(read.scans, scans);
   // Given instead of read: the same.
@@ -176,13 +179,14 @@ TEST(BagScans, ATopicThatIsNotThereIsNamedWithWhatThereIs) {
   }
 }
 
-TEST(BagScans, ADatasetComesBackScanForScan) {
+TEST(BagScans, ADatasetComesBackScanForScanFromRos1AndMcap) {
   LMF_REQUIRE_DATASETS(datasets);
   TempDir dir;
   const io::CarmenLog log = io::read_carmen_log(datasets / "orebro-realodo.log.gz");
-  write_ros1_scan_bag(dir.path() / "orebro.bag", log.scans, log.laser_mounting.x_RS,
-                      {Ros1BagWriter::Compression::lz4, false});
+  write_scan_bag(dir.path() / "orebro.bag", log.scans, log.laser_mounting.x_RS, {BagFormat::ros1, "lz4", false});
   expect_same_scans(read_bag_scans(dir.path() / "orebro.bag").scans, log.scans);
+  write_scan_bag(dir.path() / "orebro.mcap", log.scans, log.laser_mounting.x_RS, {BagFormat::mcap, "zstd", false});
+  expect_same_scans(read_bag_scans(dir.path() / "orebro.mcap").scans, log.scans);
 }
 
 }  // namespace
