@@ -1,8 +1,8 @@
 // Recorded ROS bags, whatever their container (docs/bags.md): the messages of
 // the topics asked for, in time order, as raw bytes with their encoding, and a
 // summary like `rosbag info` / `ros2 bag info`. Containers:
-//   * ROS 1 bag 2.0 ("#ROSBAG V2.0"), through Debian's librosbag-storage
-//     (uncompressed, bz2 and lz4 chunks, chunks in any order);
+//   * ROS 1 bag 2.0 ("#ROSBAG V2.0"; ros1_bag.hpp: uncompressed, bz2 and lz4
+//     chunks, chunks in any order, with or without the index);
 //   * ROS 2 MCAP (mcap_bag.hpp: uncompressed, zstd and lz4 chunks);
 //   * ROS 2 SQLite3 (rosbag2's .db3 files, or their folder with metadata.yaml;
 //     sqlite_bag.hpp), through Debian's libsqlite3.

@@ -6,9 +6,10 @@
 #include <map>
 #include <optional>
 
-#include <lz4frame.h>
 #include <zlib.h>
-#include <zstd.h>
+
+#include "lmf/bag/decompress.hpp"
+#include "lmf/bag/container_support.hpp"
 
 namespace lmf::bag::mcap {
 namespace {
@@ -166,35 +167,10 @@ class DataWalker {
 
     std::span<const std::uint8_t> plain = records;
     if (!compression.empty()) {
-      // Nothing is allocated for more than the codec can expand the chunk to:
-      // a zstd frame that states its size must state this one; otherwise (and
-      // for lz4, whose blocks expand at most ~255-fold) 255 times the chunk.
-      if (compression == "zstd") {
-        const unsigned long long stated = ZSTD_getFrameContentSize(records.data(), records.size());
-        if (stated == ZSTD_CONTENTSIZE_ERROR) throw BagFormatError(file_, where + ": not a zstd frame");
-        if (stated != ZSTD_CONTENTSIZE_UNKNOWN && stated != uncompressed_size) {
-          throw BagFormatError(file_, where + ": uncompressed_size " + std::to_string(uncompressed_size) +
-                                          " but the zstd frame holds " + std::to_string(stated));
-        }
-      }
-      const bool size_stated = compression == "zstd" &&
-                               ZSTD_getFrameContentSize(records.data(), records.size()) == uncompressed_size;
-      if (!size_stated && uncompressed_size > 255 * static_cast<std::uint64_t>(records.size()) + 1024) {
-        throw BagFormatError(file_, where + ": uncompressed_size " + std::to_string(uncompressed_size) +
-                                        " is more than " + compression + " can expand " +
-                                        std::to_string(records.size()) + " bytes to");
-      }
-      buffer_.resize(static_cast<std::size_t>(uncompressed_size));
-      if (compression == "zstd") {
-        const std::size_t n = ZSTD_decompress(buffer_.data(), buffer_.size(), records.data(), records.size());
-        if (ZSTD_isError(n) != 0u || n != buffer_.size()) {
-          throw BagFormatError(file_, where + ": zstd: " +
-                                          (ZSTD_isError(n) != 0u ? ZSTD_getErrorName(n) : "not the size announced"));
-        }
-      } else if (compression == "lz4") {
-        lz4(records, where);
-      } else {
-        throw BagFormatError(file_, where + ": unknown compression \"" + compression + "\" (none, zstd and lz4 are read)");
+      try {
+        buffer_ = decompress(compression, records, uncompressed_size);
+      } catch (const std::runtime_error& e) {
+        throw BagFormatError(file_, where + ": " + e.what() + " (none, zstd and lz4 are read)");
       }
       plain = buffer_;
     } else if (uncompressed_size != records.size()) {
@@ -214,29 +190,6 @@ class DataWalker {
     }
   }
 
-  void lz4(std::span<const std::uint8_t> records, const std::string& where) {
-    LZ4F_dctx* context = nullptr;
-    if (LZ4F_isError(LZ4F_createDecompressionContext(&context, LZ4F_VERSION)) != 0u) {
-      throw BagFormatError(file_, where + ": lz4: no decompression context");
-    }
-    std::size_t out = 0, in = 0;
-    std::size_t status = 1;
-    while (status != 0 && in < records.size() && out < buffer_.size()) {
-      std::size_t out_size = buffer_.size() - out;
-      std::size_t in_size = records.size() - in;
-      status = LZ4F_decompress(context, buffer_.data() + out, &out_size, records.data() + in, &in_size, nullptr);
-      if (LZ4F_isError(status) != 0u) {
-        LZ4F_freeDecompressionContext(context);
-        throw BagFormatError(file_, where + ": lz4: " + LZ4F_getErrorName(status));
-      }
-      out += out_size;
-      in += in_size;
-      if (out_size == 0 && in_size == 0) break;
-    }
-    LZ4F_freeDecompressionContext(context);
-    if (out != buffer_.size()) throw BagFormatError(file_, where + ": lz4: not the size announced");
-  }
-
   const std::filesystem::path& file_;
   BagSummary& summary_;
   std::map<std::uint16_t, std::string> schemas_;
@@ -247,49 +200,21 @@ class DataWalker {
   std::set<std::string> compressions_;
 };
 
-std::string joined(const std::set<std::string>& names) {
-  std::string list;
-  for (const auto& n : names) list += (list.empty() ? "" : ",") + n;
-  return list.empty() ? "none" : list;
-}
-
 }  // namespace
 
 BagSummary summarize(const std::filesystem::path& file) {
-  BagSummary summary;
-  summary.format = BagFormat::mcap;
-  std::map<std::string, BagTopic> topics;
-  DataWalker walker(file, summary);
+  SummaryCounter counter(BagFormat::mcap);
+  DataWalker walker(file, counter.summary());
   walker.walk([&](const Channel& c, std::int64_t log_time, std::span<const std::uint8_t>, std::uint64_t) {
-    BagTopic& t = topics[c.topic];
-    if (t.count == 0) {
-      t.name = c.topic;
-      t.type = c.type;
-      t.first_ns = t.last_ns = log_time;
-    }
-    t.first_ns = std::min(t.first_ns, log_time);
-    t.last_ns = std::max(t.last_ns, log_time);
-    ++t.count;
-    summary.start_ns = summary.messages == 0 ? log_time : std::min(summary.start_ns, log_time);
-    summary.end_ns = summary.messages == 0 ? log_time : std::max(summary.end_ns, log_time);
-    ++summary.messages;
+    counter.count(c.topic, c.type, log_time);
   });
-  for (auto& [name, topic] : topics) summary.topics.push_back(std::move(topic));
-  summary.compression = joined(walker.compressions_);
-  return summary;
+  return counter.finish(walker.compressions_);
 }
 
 void for_each_message(const std::filesystem::path& file, const std::set<std::string>& topics,
                       const std::function<void(const BagMessage&)>& visit) {
-  struct Kept {
-    std::int64_t log_time;
-    const Channel* channel;
-    MessageEncoding encoding;
-    std::vector<std::uint8_t> data;
-  };
   BagSummary summary;
-  std::vector<Kept> kept;
-  std::map<std::string, Channel> channels;  // stable addresses per topic
+  TimeOrderedMessages messages;
   DataWalker walker(file, summary);
   walker.walk([&](const Channel& c, std::int64_t log_time, std::span<const std::uint8_t> data, std::uint64_t at) {
     if (!topics.empty() && !topics.contains(c.topic)) return;
@@ -298,11 +223,9 @@ void for_each_message(const std::filesystem::path& file, const std::set<std::str
       throw BagFormatError(file, "MCAP message at byte " + std::to_string(at) + " on " + c.topic + ": encoding \"" +
                                      c.encoding + "\" is not read (cdr and ros1 are)");
     }
-    const Channel& stable = channels.try_emplace(c.topic, c).first->second;
-    kept.push_back({log_time, &stable, *encoding, {data.begin(), data.end()}});
+    messages.add(c.topic, c.type, log_time, *encoding, data);
   });
-  std::stable_sort(kept.begin(), kept.end(), [](const Kept& a, const Kept& b) { return a.log_time < b.log_time; });
-  for (const Kept& k : kept) visit(BagMessage{k.channel->topic, k.channel->type, k.log_time, k.encoding, k.data});
+  messages.visit_in_time_order(visit);
 }
 
 }  // namespace lmf::bag::mcap

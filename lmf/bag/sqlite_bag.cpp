@@ -6,6 +6,8 @@
 
 #include <sqlite3.h>
 
+#include "lmf/bag/container_support.hpp"
+
 namespace lmf::bag::sqlite {
 namespace {
 
@@ -94,26 +96,12 @@ std::vector<std::filesystem::path> database_files(const std::filesystem::path& b
 }
 
 BagSummary summarize(const std::filesystem::path& bag) {
-  BagSummary summary;
-  summary.format = BagFormat::sqlite3;
-  summary.compression = "none";
-  std::map<std::string, BagTopic> topics;
+  SummaryCounter counter(BagFormat::sqlite3);
   walk(bag, "SELECT topic_id, timestamp FROM messages ORDER BY timestamp, id",
        [&](const std::filesystem::path&, const Topic& topic, std::int64_t t, sqlite3_stmt*, std::int64_t) {
-         BagTopic& b = topics[topic.name];
-         if (b.count == 0) {
-           b.name = topic.name;
-           b.type = topic.type;
-           b.first_ns = t;
-         }
-         b.last_ns = t;
-         ++b.count;
-         if (summary.messages == 0) summary.start_ns = t;
-         summary.end_ns = t;
-         ++summary.messages;
+         counter.count(topic.name, topic.type, t);
        });
-  for (auto& [name, topic] : topics) summary.topics.push_back(std::move(topic));
-  return summary;
+  return counter.finish({});
 }
 
 void for_each_message(const std::filesystem::path& bag, const std::set<std::string>& topics,

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 
 #include "lmf/bag/bag_file.hpp"
 #include "lmf/bag/bag_scans.hpp"
@@ -187,6 +188,40 @@ TEST(BagScans, ADatasetComesBackScanForScanFromRos1AndMcap) {
   expect_same_scans(read_bag_scans(dir.path() / "orebro.bag").scans, log.scans);
   write_scan_bag(dir.path() / "orebro.mcap", log.scans, log.laser_mounting.x_RS, {BagFormat::mcap, "zstd", false});
   expect_same_scans(read_bag_scans(dir.path() / "orebro.mcap").scans, log.scans);
+}
+
+}  // namespace
+}  // namespace lmf::bag
+
+namespace lmf::bag {
+namespace {
+
+TEST(BagScans, ARos1BagCutShortByAKilledRecorderIsReadUpToTheCut) {
+  TempDir dir;
+  const auto file = dir.path() / "whole.bag";
+  write_scan_bag(file, synthetic_scans(2000), std::nullopt, {BagFormat::ros1, "none", false});  // ~4 chunks
+  std::vector<char> bytes;
+  {
+    std::ifstream in(file, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  // As a killed recorder leaves it: the header's index_pos still 0, a chunk cut in the middle.
+  const std::string index_pos = "index_pos=";
+  const auto field = std::search(bytes.begin(), bytes.end(), index_pos.begin(), index_pos.end());
+  ASSERT_NE(field, bytes.end());
+  std::fill_n(field + static_cast<std::ptrdiff_t>(index_pos.size()), 8, '\0');
+  bytes.resize(bytes.size() / 2);
+  const auto cut = dir.path() / "cut.bag";
+  std::ofstream(cut, std::ios::binary).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  const BagSummary summary = summarize_bag(cut);
+  ASSERT_TRUE(summary.cut_short);
+  EXPECT_NE(summary.cut_short->find("no index"), std::string::npos) << *summary.cut_short;
+  const BagScans read = read_bag_scans(cut);
+  EXPECT_GT(read.scans.size(), 0u);
+  EXPECT_LT(read.scans.size(), 2000u);
+  bool noted = false;
+  for (const auto& note : read.notes) noted = noted || note.starts_with("CUT SHORT");
+  EXPECT_TRUE(noted);
 }
 
 }  // namespace

@@ -23,6 +23,7 @@ TEST(SharedBags, Ros1LaserScanBagsAreReadWithTheirCounts) {
   const BagSummary demo = summarize_bag(dir / "ros1-scan-matcher-demo.bag");
   EXPECT_EQ(demo.format, BagFormat::ros1);
   EXPECT_EQ(demo.compression, "none");
+  EXPECT_FALSE(demo.cut_short) << *demo.cut_short;
   EXPECT_EQ(topics(demo), (std::map<std::string, std::pair<std::string, std::size_t>>{
                               {"/scan", {"sensor_msgs/LaserScan", 360}}}));
   const BagSummary right = summarize_bag(dir / "ros1-scan-topic-without-slash.bag");
@@ -48,6 +49,7 @@ TEST(SharedBags, CompressedChunksAreReadBz2AndLz4) {
   LMF_REQUIRE_BAGS(dir);
   const BagSummary odom = summarize_bag(dir / "ros1-odometry-bz2.bag");
   EXPECT_EQ(odom.compression, "bz2");
+  EXPECT_FALSE(odom.cut_short);
   EXPECT_EQ(topics(odom).at("/jackal_velocity_controller/odom"),
             std::make_pair(std::string("nav_msgs/Odometry"), std::size_t{3060}));
   EXPECT_EQ(topics(odom).at("/imu/data").second, 3061u);
