@@ -69,6 +69,9 @@ int main(int argc, char** argv) {
       "odom-topic", po::value(&bag_options.odom_topic), "--bag: the nav_msgs/Odometry topic (default: the only one)")(
       "odom-frame", po::value(&bag_options.odom_frame), "--bag: odometry from /tf, this frame (default odom) ...")(
       "base-frame", po::value(&bag_options.base_frame), "--bag: ... to this one (default: odom's only child in /tf)")(
+      "no-odometry",
+      "the scans have no odometry (a laser alone): the scan match carries the motion from a constant-velocity "
+      "prior (docs/bags.md); with --log, the log's odometry is ignored")(
       "laser-mounting", po::value(&laser_mounting),
       "--bag: the laser on the base, x,y,yaw (m, m, rad); default: from /tf_static")(
       "split", po::value(&split)->default_value(1),
@@ -102,6 +105,9 @@ int main(int argc, char** argv) {
         config_file.empty() ? lmf::mission::MissionConfig{} : lmf::mission::load_mission_config(config_file);
     if (vm.count("seed") != 0u) config.sighting_noise.seed = seed;
     if (!laser_mounting.empty()) bag_options.laser_mounting = parse_mounting(laser_mounting);
+    const bool no_odometry = vm.count("no-odometry") != 0u;
+    bag_options.no_odometry = no_odometry;
+    if (no_odometry) config.local_map.scans_have_odometry = false;
     lmf::mission::MissionInputs inputs;
     if (!sim_dir.empty()) {
       inputs = lmf::mission::load_sim_folder(sim_dir, config.sighting_noise);
@@ -110,7 +116,15 @@ int main(int argc, char** argv) {
       for (const auto& bag : bags) recordings.push_back(read_bag_recording(bag, bag_options));
       inputs = lmf::mission::load_recordings(std::move(recordings), split, gt, config.sighting_noise);
     } else {
-      inputs = lmf::mission::load_logs({logs.begin(), logs.end()}, split, gt, config.sighting_noise);
+      std::vector<lmf::mission::RecordedLog> recordings;
+      for (const auto& log : logs) recordings.push_back(lmf::mission::read_carmen_recording(log));
+      if (no_odometry) {
+        for (auto& recording : recordings) {
+          for (auto& scan : recording.scans) scan.odometry = lmf::Pose2();
+          recording.notes.push_back("odometry ignored (--no-odometry)");
+        }
+      }
+      inputs = lmf::mission::load_recordings(std::move(recordings), split, gt, config.sighting_noise);
     }
     lmf::mission::OfflineMission mission(config, std::move(inputs));
     const lmf::mission::MissionResult result = mission.run();

@@ -173,14 +173,19 @@ ScanReport LocalMap::process_scan(const LaserScan& scan) {
   ScanReport report;
   std::optional<Motion> motion;
   const bool have_increment = odometry_reference_ && finite(scan.odometry);
-  const Pose2 u = have_increment ? between(*odometry_reference_, scan.odometry) : Pose2();
+  const int64_t dt_us = scan.utime - last_utime_;
+  // The prior of the increment: the odometry's, corrected by the learned model,
+  // or without odometry the constant-velocity prediction.
+  const bool with_odometry = config_.scans_have_odometry;
+  const Pose2 u = !have_increment ? Pose2()
+                  : with_odometry ? between(*odometry_reference_, scan.odometry)
+                                  : velocity_prior_.predict(dt_us);
+  const Pose2 u_bar = with_odometry ? odometry_model().corrected(u) : u;
+  const Eigen::Matrix3d Q = with_odometry ? odometry_model().covariance(u) : velocity_prior_.covariance();
   if (matching.enabled && !scan_history_.empty() && have_increment) {
-    // Step 1 refined: a scan match against the recent scans, the odometry
-    // increment corrected by the learned model as the centre of its search
-    // window and as its prior; the match teaches the model.
-    const OdometryErrorModel& model = odometry_model();
-    const Pose2 u_bar = model.corrected(u);
-    const Eigen::Matrix3d Q = model.covariance(u);
+    // Step 1 refined: a scan match against the recent scans, the prior as the
+    // centre of its search window and as its prior; the match teaches the
+    // odometry model.
     // (Q is singular only for a standing robot with zero noise floors: no prior, no match.)
     const bool prior_ok = Eigen::LLT<Eigen::Matrix3d>(Q).info() == Eigen::Success;
     const std::optional<ScanMatch> match =
@@ -194,11 +199,15 @@ ScanReport LocalMap::process_scan(const LaserScan& scan) {
       report.scan_match_covariance = match->covariance;
       report.scan_match_objects_moving = match->objects_moving;
       motion = Motion{match->x_AB, match->covariance};
-      if (config_.odometry_learning.enabled) {
+      if (config_.odometry_learning.enabled && with_odometry) {
         report.odometry_learning_weight =
             odometry_learner_.observe(u, match->static_x_AB, match->static_laser_information);
       }
     }
+  }
+  if (!with_odometry && have_increment) {
+    if (!motion) motion = Motion{u_bar, Q};  // the match failed: the prediction, as wide as the window
+    velocity_prior_.observe(motion->u, dt_us);
   }
   report = update_with(scan.utime, scan.odometry, extract_segments(scan, config_.extraction), motion, report);  // step 2
   // The history goes on from the matched increment; after the odometry's alone

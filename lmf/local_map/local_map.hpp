@@ -40,6 +40,7 @@
 #include "lmf/geometry/pose2.hpp"
 #include "lmf/local_map/local_map_config.hpp"
 #include "lmf/local_map/local_map_snapshot.hpp"
+#include "lmf/local_map/constant_velocity_prior.hpp"
 #include "lmf/local_map/odometry_model.hpp"
 #include "lmf/scan/laser_scan.hpp"
 #include "lmf/scan/observed_segment.hpp"
@@ -225,6 +226,8 @@ class LocalMap {
   spmap::Chi2Table joint_chi2_;
   spmap::Chi2Table constraint_chi2_;
   std::optional<Pose2> odometry_reference_;
+  // The motion prior where the scans have no odometry (scans_have_odometry false).
+  ConstantVelocityPrior velocity_prior_{config_.scan_matching};
   // The last scans with their poses relative to the newest (scan_matching.enabled):
   // the reference of step 1's match. Relative to the robot, so reset() keeps it.
   ScanHistory scan_history_{config_.scan_matching};

@@ -48,6 +48,8 @@ void LocalMapConfig::validate() const {
   require(max_segments > 0, "max_segments", max_segments, "> 0");
   require(finite_nonnegative(covariance_tolerance), "covariance_tolerance", covariance_tolerance,
           "finite and >= 0");
+  require(scans_have_odometry || scan_matching.enabled, "scans_have_odometry", scans_have_odometry,
+          "true unless scan_matching.enabled (without odometry only the scan match measures the motion)");
   odometry_learning.validate();
   extraction.validate();
   scan_matching.validate();

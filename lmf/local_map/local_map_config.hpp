@@ -113,6 +113,13 @@ struct LocalMapConfig {
   // when the match fails it predicts with the odometry as usual.
   ScanMatcherConfig scan_matching;
 
+  // What the scans carry, not a tuning: false for scans without odometry (a
+  // recording of a laser alone; lmf-offline --bag --no-odometry). Each increment
+  // is then predicted at constant velocity with a covariance as wide as the
+  // scan matcher's window (constant_velocity_prior.hpp), the scan match carries
+  // the motion, and there is no odometry model to learn. Needs scan_matching.
+  bool scans_have_odometry = true;
+
   // Free-space evidence (beyond the paper; on by default): after each scan,
   // LocalMap::process_scan removes the map segments that most beams crossing
   // them pass through (see_through.hpp): other robots, people, false extractions.

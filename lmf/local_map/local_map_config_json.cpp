@@ -30,6 +30,7 @@ void read_local_map_config(io::JsonReader& reader, LocalMapConfig& config) {
   reader.read("max_segments", config.max_segments, io::positive());
   reader.read("covariance_tolerance", config.covariance_tolerance, io::non_negative());
   reader.read("covariance_check_interval", config.covariance_check_interval);
+  reader.read("scans_have_odometry", config.scans_have_odometry);
   if (io::JsonReader* extraction = reader.optional_section("extraction")) {
     read_extraction_config(*extraction, config.extraction);
   }

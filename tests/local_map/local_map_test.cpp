@@ -1,6 +1,7 @@
 // The local map's steps on constructed cases (docs/design.md §4): pairing, the other
 // face, fusion, perpendicular constraints, the frame shift, prediction, the ship
 // policy and snapshot/reset.
+#include "lmf/local_map/constant_velocity_prior.hpp"
 #include "lmf/local_map/local_map.hpp"
 
 #include <cmath>
@@ -629,6 +630,66 @@ TEST(LocalMapScanMatching, PredictionWithTheMatchBeatsTheOdometry) {
   EXPECT_EQ(matched_with, 14);
   // Seeds 1-5: 0.061-0.066 with, 0.079-0.082 without (dead reckoning: 0.4 m).
   EXPECT_LT(with, 0.85 * without) << "with matching " << with << ", without " << without;
+}
+
+// Scans without odometry (a laser alone): the constant-velocity prior and the
+// scan match carry the motion. Told that the scans have none, the local map
+// follows a smooth path; taking the missing odometry for "standing still", it
+// cannot (its prior says a few mm, so the window is centred on no motion and
+// the match is pulled back to it).
+TEST(LocalMapScanMatching, ScansWithoutOdometryAreMappedByTheMatchAlone) {
+  testing::SyntheticWorld room;
+  room.walls = {{{-2.0, -4.0}, {12.0, -4.0}}, {{12.0, -4.0}, {12.0, 1.0}}, {{12.0, 1.0}, {7.0, 1.0}},
+                {{7.0, 1.0}, {7.0, 5.0}},     {{7.0, 5.0}, {-2.0, 5.0}},  {{-2.0, 5.0}, {-2.0, -4.0}},
+                {{3.0, 4.0}, {3.0, 5.0}}};
+  std::mt19937 rng(5);
+  std::vector<LaserScan> scans;
+  std::vector<Pose2> truth;
+  for (int k = 0; k < 40; ++k) {
+    const Pose2 x_WR(0.2 * k, 0.6 * std::sin(0.1 * k), 0.06 * std::cos(0.1 * k));
+    truth.push_back(x_WR);
+    LaserScan scan = testing::make_scan(room, x_WR, 361, 80.0, 0.01, &rng);
+    scan.utime = k * kScanPeriodUs;
+    scan.odometry = Pose2();  // none
+    scans.push_back(scan);
+  }
+  auto final_error = [&](bool told) {
+    LocalMapConfig config;
+    config.scans_have_odometry = !told;
+    LocalMap lm(config);
+    for (const LaserScan& scan : scans) {
+      lm.process_scan(scan);
+      EXPECT_TRUE(lm.check_covariance().ok());
+    }
+    const Pose2 e = between(lm.x_LR(), between(truth.front(), truth.back()));
+    return std::hypot(e.x, e.y) + 2.0 * std::abs(e.phi);  // m, and rad at 2 m
+  };
+  const double told = final_error(true);
+  const double not_told = final_error(false);
+  EXPECT_LT(told, 0.1) << "7.8 m of travel";
+  EXPECT_GT(not_told, 1.0);
+}
+
+TEST(ConstantVelocityPrior, GoesOnAsItWentWithTheWindowAsItsSpread) {
+  ScanMatcherConfig matching;
+  ConstantVelocityPrior prior(matching);
+  EXPECT_TRUE(is_near(prior.predict(100000), Pose2(), 0.0, 0.0));  // nothing seen: standing
+  prior.observe(Pose2(0.1, -0.02, 0.03), 100000);                  // in 0.1 s
+  EXPECT_TRUE(is_near(prior.predict(200000), Pose2(0.2, -0.04, 0.06), 1e-12, 1e-12));
+  prior.observe(Pose2(0.5, 0.0, 0.0), 0);  // no time passed: nothing learned
+  EXPECT_TRUE(is_near(prior.predict(100000), Pose2(0.1, -0.02, 0.03), 1e-12, 1e-12));
+  const Eigen::Vector3d sigma = prior.covariance().diagonal().cwiseSqrt();
+  EXPECT_NEAR(sigma.x(), matching.search_window_m / 3.0, 1e-12);
+  EXPECT_NEAR(sigma.y(), matching.search_window_m / 3.0, 1e-12);
+  EXPECT_NEAR(sigma.z(), matching.search_window_rad / 3.0, 1e-12);
+}
+
+TEST(LocalMapConfig, ScansWithoutOdometryNeedTheScanMatch) {
+  LocalMapConfig config;
+  config.scans_have_odometry = false;
+  EXPECT_NO_THROW(config.validate());
+  config.scan_matching.enabled = false;
+  EXPECT_THROW(config.validate(), std::invalid_argument);
 }
 
 // The scan history behind step 1 is relative to the robot: a new local map
