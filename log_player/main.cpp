@@ -1,4 +1,4 @@
-// lmf-player: replays CARMEN logs or an lmf-sim folder as live robots over LCM
+// lmf-player: replays CARMEN logs, ROS bags or an lmf-sim folder as live robots over LCM
 // (docs/design.md §1). See --help and log_player/player_node.hpp.
 #include <unistd.h>
 
@@ -15,6 +15,7 @@
 #include "lmf/mission/config_file.hpp"
 #include "lmf/mission/mission_inputs.hpp"
 #include "log_player/player_node.hpp"
+#include "tools/recording_options.hpp"
 #include "runtime/bus.hpp"
 #include "runtime/event_loop.hpp"
 #include "runtime/options.hpp"
@@ -25,7 +26,7 @@ namespace rt = lmf::runtime;
 int main(int argc, char** argv) {
   constexpr const char* kProgram = "lmf-player";
   rt::CommonOptions common;
-  std::vector<std::string> logs;
+  lmf::tools::RecordingOptions recordings;
   int split = 1;
   std::string gt;
   std::string sim_dir;
@@ -41,9 +42,8 @@ int main(int argc, char** argv) {
   po::options_description description("Options");
   rt::add_common_options(description, common);
   description.add_options()
-      ("log", po::value(&logs), "CARMEN log (plain or .gz); repeat for one robot per file (ids 0, 1, ...)")
       ("split", po::value(&split)->default_value(split),
-       "cut the single --log into N contiguous parts replayed as N simultaneous robots")
+       "cut the single --log or --bag into N contiguous parts replayed as N simultaneous robots")
       ("gt", po::value(&gt), "reference poses of the log(s): robots after the first join by a sighting at their start")
       ("sim", po::value(&sim_dir), "an lmf-sim output folder instead of --log")
       ("rate", po::value(&rate)->default_value(rate), "replay speed: log time / R (R > 0)")
@@ -67,14 +67,18 @@ int main(int argc, char** argv) {
       ("start-delay-ms", po::value(&start_delay_ms)->default_value(start_delay_ms),
        "wait this long before the first scan (for subscribers to start)")
       ("quiet", "no progress output");
+  recordings.add_to(description);
   po::variables_map vm;
   rt::parse_options_or_exit(argc, argv, description, kProgram,
                             "Replays recorded or simulated robots over LCM: scans, sightings, then mission_end_t.\n"
-                            "Give --log FILE... [--split N] [--gt FILE] or --sim DIR.",
+                            "Give --log FILE... or --bag FILE... [--split N] [--gt FILE], or --sim DIR. With\n"
+                            "--no-odometry the agents need local_map.scans_have_odometry false in their config.",
                             &vm);
-  if (logs.empty() == sim_dir.empty()) rt::exit_with_error(kProgram, "give exactly one of --log or --sim", 2);
+  if (recordings.kinds_given() + (!sim_dir.empty()) != 1) {
+    rt::exit_with_error(kProgram, "give exactly one of --log, --bag or --sim", 2);
+  }
   if (!sim_dir.empty() && (vm["split"].as<int>() != 1 || !gt.empty())) {
-    rt::exit_with_error(kProgram, "--split and --gt go with --log, not --sim", 2);
+    rt::exit_with_error(kProgram, "--split and --gt go with --log or --bag, not --sim", 2);
   }
 
   lmf::log_player::PlayerOptions options;
@@ -83,7 +87,8 @@ int main(int argc, char** argv) {
     lmf::mission::MissionConfig config =
         config_file.empty() ? lmf::mission::MissionConfig{} : lmf::mission::load_mission_config(config_file);
     if (vm.count("seed") != 0u) config.sighting_noise.seed = seed;
-    inputs = sim_dir.empty() ? lmf::mission::load_logs({logs.begin(), logs.end()}, split, gt, config.sighting_noise)
+    recordings.finish(vm);
+    inputs = sim_dir.empty() ? lmf::mission::load_recordings(recordings.read(), split, gt, config.sighting_noise)
                              : lmf::mission::load_sim_folder(sim_dir, config.sighting_noise);
     options.channels = rt::Channels(common.channel_prefix);
     options.lockstep = vm.count("lockstep") != 0u;
