@@ -31,6 +31,9 @@ void RecordingOptions::add_to(po::options_description& options) {
       "base-frame", po::value(&bag.base_frame), "--bag: ... to this one (default: odom's only child in /tf)")(
       "laser-mounting", po::value(&laser_mounting),
       "--bag: the laser on the base, x,y,yaw (m, m, rad); default: from /tf_static")(
+      "robot", po::value(&robots),
+      "--bag: NAME=/namespace, a robot whose topics are under /namespace (/robot1/scan, /robot1/odom); repeat "
+      "for each robot of the one bag")(
       "no-odometry",
       "the scans have no odometry (a laser alone): the scan match carries the motion from a constant-velocity "
       "prior (docs/bags.md); with --log, the log's odometry is ignored");
@@ -51,15 +54,29 @@ std::vector<mission::RecordedLog> RecordingOptions::read() const {
       recordings.back().notes.push_back("odometry ignored (--no-odometry)");
     }
   }
-  for (const auto& file : bags) {
-    bag::BagScans scans = bag::read_bag_scans(file, bag);
+  const auto read_bag = [&](const std::string& file, const std::string& name, const bag::BagScanOptions& options) {
+    bag::BagScans scans = bag::read_bag_scans(file, options);
     mission::RecordedLog recording;
     recording.file = file;
-    recording.name = std::filesystem::path(file).stem().string();
+    recording.name = name;
     recording.scans = std::move(scans.scans);
     recording.notes = std::move(scans.notes);
     recordings.push_back(std::move(recording));
+  };
+  if (!robots.empty()) {
+    if (bags.size() != 1) throw std::invalid_argument("--robot: give exactly one --bag, the one the robots share");
+    for (const auto& robot : robots) {
+      const auto eq = robot.find('=');
+      if (eq == std::string::npos || eq == 0 || eq + 1 == robot.size()) {
+        throw std::invalid_argument("--robot: expected NAME=/namespace, got \"" + robot + "\"");
+      }
+      bag::BagScanOptions options = bag;
+      options.robot_namespace = robot.substr(eq + 1);
+      read_bag(bags.front(), robot.substr(0, eq), options);
+    }
+    return recordings;
   }
+  for (const auto& file : bags) read_bag(file, std::filesystem::path(file).stem().string(), bag);
   return recordings;
 }
 

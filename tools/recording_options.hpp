@@ -20,6 +20,7 @@ struct RecordingOptions {
   std::vector<std::string> bags;
   bag::BagScanOptions bag;
   std::string laser_mounting;  // "x,y,yaw"
+  std::vector<std::string> robots;  // "NAME=/namespace": several robots in the one --bag
   bool no_odometry = false;
 
   void add_to(boost::program_options::options_description& options);
@@ -28,8 +29,10 @@ struct RecordingOptions {
   void finish(const boost::program_options::variables_map& vm);
   // How many of --log and --bag were given (0, 1 or 2 kinds).
   int kinds_given() const { return (logs.empty() ? 0 : 1) + (bags.empty() ? 0 : 1); }
-  // Every file read, one robot each, named after the file; with no_odometry the
-  // scans' odometry is the identity (noted). Throws the readers' errors.
+  // Every file read, one robot each, named after the file (or, with --robot,
+  // one robot per namespace of the one bag, named as given); with no_odometry
+  // the scans' odometry is the identity (noted). Throws the readers' errors,
+  // and std::invalid_argument for --robot without exactly one --bag or not NAME=/ns.
   std::vector<mission::RecordedLog> read() const;
 };
 

@@ -153,39 +153,66 @@ std::optional<LaserScan> to_laser_scan(const RosLaserScan& ros, std::size_t& no_
   return scan;
 }
 
+// The topics under a robot's namespace ("/robot1": "/robot1/scan", ...), or all without one.
+BagSummary in_namespace(const BagSummary& all, const std::string& robot_namespace) {
+  if (robot_namespace.empty()) return all;
+  const std::string prefix = "/" + without_leading_slash(robot_namespace) + "/";
+  BagSummary summary = all;
+  std::erase_if(summary.topics, [&](const BagTopic& t) { return !("/" + without_leading_slash(t.name)).starts_with(prefix); });
+  return summary;
+}
+
+// A topic name given relative to the robot's namespace.
+std::string under_namespace(const std::string& robot_namespace, const std::string& name) {
+  if (robot_namespace.empty() || name.empty()) return name;
+  return "/" + without_leading_slash(robot_namespace) + "/" + without_leading_slash(name);
+}
+
 }  // namespace
 
 BagScans read_bag_scans(const std::filesystem::path& file, const BagScanOptions& options) {
-  const BagSummary summary = summarize_bag(file);
-  const BagTopic& scan_topic = choose_topic(summary, options.scan_topic, is_laser_scan_type, "LaserScan", "--scan-topic");
+  const BagSummary everything = summarize_bag(file);
+  // A robot's own topics; its /tf and /tf_static, when it has none of its own, are the bag's.
+  const BagSummary summary = in_namespace(everything, options.robot_namespace);
+  const std::string& ns = options.robot_namespace;
+  const auto shared_topic = [&](const std::string& name) {
+    const BagTopic* own = ns.empty() ? nullptr : find_topic(summary, under_namespace(ns, name));
+    return own != nullptr ? own : find_topic(everything, name);
+  };
+  const BagTopic& scan_topic = choose_topic(summary, under_namespace(ns, options.scan_topic), is_laser_scan_type,
+                                            "LaserScan", "--scan-topic");
 
   // The odometry source: an Odometry topic, or /tf from odom_frame to base_frame.
   const BagTopic* odom_topic = nullptr;
-  const BagTopic* tf_topic = find_topic(summary, "/tf");
+  const BagTopic* tf_topic = shared_topic("/tf");
   const bool use_tf = !options.no_odometry && options.odom_topic.empty() &&
                       (!options.odom_frame.empty() || !options.base_frame.empty() ||
                        topics_of_type(summary, is_odometry_type).empty());
   if (!options.no_odometry && !use_tf) {
-    odom_topic = &choose_topic(summary, options.odom_topic, is_odometry_type, "Odometry", "--odom-topic");
+    odom_topic = &choose_topic(summary, under_namespace(ns, options.odom_topic), is_odometry_type, "Odometry",
+                               "--odom-topic");
   }
   if (use_tf && (tf_topic == nullptr || !is_tf_type(tf_topic->type))) {
     throw std::invalid_argument("no odometry in the bag: no nav_msgs/Odometry topic and no /tf (topics: " +
                                 topic_list(summary, nullptr) + "); map with --no-odometry");
   }
-  const std::string odom_frame = options.odom_frame.empty() ? "odom" : without_leading_slash(options.odom_frame);
+  // The odometry frame: given, or "odom", or in a namespace also "<robot>/odom" (tf_prefix style).
+  std::vector<std::string> odom_frames{options.odom_frame.empty() ? "odom" : without_leading_slash(options.odom_frame)};
+  if (options.odom_frame.empty() && !ns.empty()) odom_frames.push_back(without_leading_slash(ns) + "/odom");
+  std::string odom_frame = odom_frames.front();
   std::string base_frame = without_leading_slash(options.base_frame);
 
   std::set<std::string> wanted{scan_topic.name};
   if (odom_topic != nullptr) wanted.insert(odom_topic->name);
   if (use_tf) wanted.insert(tf_topic->name);
-  const BagTopic* tf_static_topic = find_topic(summary, "/tf_static");
+  const BagTopic* tf_static_topic = shared_topic("/tf_static");
   if (tf_static_topic != nullptr && is_tf_type(tf_static_topic->type)) wanted.insert(tf_static_topic->name);
 
   BagScans out;
   std::vector<std::pair<RosHeader, LaserScan>> laser_scans;
   std::vector<StampedPose2> odometry;
   std::vector<RosTransform> statics;
-  std::map<std::string, std::vector<StampedPose2>> tf_children;  // odom_frame's children in /tf
+  std::map<std::string, std::map<std::string, std::vector<StampedPose2>>> tf_edges;  // parent -> child -> poses
   std::string odometry_child;
   std::map<std::string, std::size_t> index;
   for_each_bag_message(file, wanted, [&](const BagMessage& m) {
@@ -214,8 +241,11 @@ BagScans read_bag_scans(const std::filesystem::path& file, const BagScanOptions&
         }
       } else if (use_tf && m.topic == tf_topic->name) {
         for (const auto& t : decode_tf_message(m.data, m.encoding)) {
-          if (without_leading_slash(t.header.frame_id) != odom_frame || !finite(t.transform)) continue;
-          tf_children[without_leading_slash(t.child_frame_id)].push_back(
+          const std::string parent = without_leading_slash(t.header.frame_id);
+          if (std::find(odom_frames.begin(), odom_frames.end(), parent) == odom_frames.end() || !finite(t.transform)) {
+            continue;
+          }
+          tf_edges[parent][without_leading_slash(t.child_frame_id)].push_back(
               {t.header.stamp_ns, planar(isometry(t.transform))});
         }
       }
@@ -225,6 +255,13 @@ BagScans read_bag_scans(const std::filesystem::path& file, const BagScanOptions&
   });
 
   if (use_tf) {
+    for (const auto& candidate : odom_frames) {
+      if (tf_edges.contains(candidate)) {
+        odom_frame = candidate;
+        break;
+      }
+    }
+    auto& tf_children = tf_edges[odom_frame];
     if (base_frame.empty()) {
       if (tf_children.size() != 1) {
         std::string children;
@@ -292,6 +329,7 @@ BagScans read_bag_scans(const std::filesystem::path& file, const BagScanOptions&
     out.scans.push_back(std::move(scan));
   }
   out.notes.push_back("scans: " + scan_topic.name + ", " + std::to_string(out.scans.size()) + " used");
+  if (!ns.empty()) out.notes.push_back("robot namespace: " + ns);
   if (summary.cut_short) out.notes.push_back("CUT SHORT: " + *summary.cut_short + " (read up to there)");
   if (out.scans_outside_odometry > 0) {
     out.notes.push_back(std::to_string(out.scans_outside_odometry) + " scans outside the odometry's time span dropped");

@@ -35,6 +35,11 @@
 namespace lmf::bag {
 
 struct BagScanOptions {
+  // A robot of several in one bag: its topics are those under this namespace
+  // ("/robot1": /robot1/scan, /robot1/odom, ...; the topics below are then
+  // relative to it), its /tf and /tf_static its own where it has them, else the
+  // bag's, and its odometry frame "odom" or "robot1/odom". Empty: the whole bag.
+  std::string robot_namespace;
   // Empty: the bag's only LaserScan topic (an error when there are several or none).
   std::string scan_topic;
   // The odometry: a nav_msgs/Odometry topic, or /tf from odom_frame to

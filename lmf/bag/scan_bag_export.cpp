@@ -29,6 +29,11 @@ using Write = std::function<void(const std::string&, const std::string&, std::in
 
 void write_scan_bag(const std::filesystem::path& file, const std::vector<LaserScan>& scans,
                     const std::optional<Pose2>& x_BL, const ScanBagExportOptions& options) {
+  write_scan_bag(file, std::vector<RobotScans>{{"", scans, x_BL}}, options);
+}
+
+void write_scan_bag(const std::filesystem::path& file, const std::vector<RobotScans>& robots,
+                    const ScanBagExportOptions& options) {
   std::unique_ptr<Ros1BagWriter> ros1;
   std::unique_ptr<McapWriter> mcap;
   MessageEncoding encoding = MessageEncoding::ros1;
@@ -54,41 +59,48 @@ void write_scan_bag(const std::filesystem::path& file, const std::vector<LaserSc
     throw std::invalid_argument("write_scan_bag: lmf writes ROS 1 bags and MCAP files");
   }
 
-  const Pose2 mounting = x_BL.value_or(Pose2{});
-  const Pose2 x_LB = inverse(mounting);
-  const std::int64_t first_ns = scans.empty() ? 0 : scans.front().utime * 1000;
-  RosTransform mount;
-  mount.header = {first_ns, "base_link"};
-  mount.child_frame_id = "laser";
-  mount.transform = pose3(mounting);
-  write("/tf_static", "tf2_msgs/TFMessage", first_ns, encode_tf_message({mount}, encoding));
+  for (const RobotScans& robot : robots) {
+    const std::string name = robot.robot_namespace.starts_with('/') ? robot.robot_namespace.substr(1)
+                                                                    : robot.robot_namespace;
+    const std::string topic_prefix = name.empty() ? "" : "/" + name;
+    const std::string frame_prefix = name.empty() ? "" : name + "/";
+    const std::vector<LaserScan>& scans = robot.scans;
+    const Pose2 mounting = robot.x_BL.value_or(Pose2{});
+    const Pose2 x_LB = inverse(mounting);
+    const std::int64_t first_ns = scans.empty() ? 0 : scans.front().utime * 1000;
+    RosTransform mount;
+    mount.header = {first_ns, frame_prefix + "base_link"};
+    mount.child_frame_id = frame_prefix + "laser";
+    mount.transform = pose3(mounting);
+    write("/tf_static", "tf2_msgs/TFMessage", first_ns, encode_tf_message({mount}, encoding));
 
-  for (const LaserScan& scan : scans) {
-    const std::int64_t t_ns = scan.utime * 1000;
-    const Pose2 x_OB = compose(scan.odometry, x_LB);
-    if (options.odometry_as_tf) {
-      RosTransform t;
-      t.header = {t_ns, "odom"};
-      t.child_frame_id = "base_link";
-      t.transform = pose3(x_OB);
-      write("/tf", "tf2_msgs/TFMessage", t_ns, encode_tf_message({t}, encoding));
-    } else {
-      RosOdometry o;
-      o.header = {t_ns, "odom"};
-      o.child_frame_id = "base_link";
-      o.pose = pose3(x_OB);
-      write("/odom", "nav_msgs/Odometry", t_ns, encode_odometry(o, encoding));
+    for (const LaserScan& scan : scans) {
+      const std::int64_t t_ns = scan.utime * 1000;
+      const Pose2 x_OB = compose(scan.odometry, x_LB);
+      if (options.odometry_as_tf) {
+        RosTransform t;
+        t.header = {t_ns, frame_prefix + "odom"};
+        t.child_frame_id = frame_prefix + "base_link";
+        t.transform = pose3(x_OB);
+        write("/tf", "tf2_msgs/TFMessage", t_ns, encode_tf_message({t}, encoding));
+      } else {
+        RosOdometry o;
+        o.header = {t_ns, frame_prefix + "odom"};
+        o.child_frame_id = frame_prefix + "base_link";
+        o.pose = pose3(x_OB);
+        write(topic_prefix + "/odom", "nav_msgs/Odometry", t_ns, encode_odometry(o, encoding));
+      }
+      RosLaserScan s;
+      s.header = {t_ns, frame_prefix + "laser"};
+      s.angle_min = static_cast<float>(scan.angle_min_rad);
+      s.angle_increment = static_cast<float>(scan.angle_increment_rad);
+      s.angle_max = static_cast<float>(scan.angle_min_rad +
+                                       scan.angle_increment_rad * static_cast<double>(scan.ranges_m.size() - 1));
+      s.range_min = 0.0f;
+      s.range_max = static_cast<float>(scan.max_range_m);
+      s.ranges.assign(scan.ranges_m.begin(), scan.ranges_m.end());
+      write(topic_prefix + "/scan", "sensor_msgs/LaserScan", t_ns, encode_laser_scan(s, encoding));
     }
-    RosLaserScan s;
-    s.header = {t_ns, "laser"};
-    s.angle_min = static_cast<float>(scan.angle_min_rad);
-    s.angle_increment = static_cast<float>(scan.angle_increment_rad);
-    s.angle_max = static_cast<float>(scan.angle_min_rad +
-                                     scan.angle_increment_rad * static_cast<double>(scan.ranges_m.size() - 1));
-    s.range_min = 0.0f;
-    s.range_max = static_cast<float>(scan.max_range_m);
-    s.ranges.assign(scan.ranges_m.begin(), scan.ranges_m.end());
-    write("/scan", "sensor_msgs/LaserScan", t_ns, encode_laser_scan(s, encoding));
   }
   if (ros1) ros1->close();
   if (mcap) mcap->close();

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lmf/bag/bag_file.hpp"
@@ -25,10 +26,23 @@ struct ScanBagExportOptions {
   bool odometry_as_tf = false;         // /tf instead of /odom
 };
 
-// `scans` carry the laser's odometry pose; `x_BL`, the laser on the base
-// (identity when unset), gives the base's: x_OB = x_OL ⊕ ⊖x_BL. Throws
-// std::invalid_argument for a format or compression it cannot write and
+// One robot's recording. `scans` carry the laser's odometry pose; `x_BL`, the
+// laser on the base (identity when unset), gives the base's: x_OB = x_OL ⊕ ⊖x_BL.
+// With a namespace ("/robot1") its topics are under it (/robot1/scan,
+// /robot1/odom) and its frames prefixed ("robot1/odom", "robot1/base_link",
+// "robot1/laser", on the bag's /tf and /tf_static), as multi-robot setups name
+// them.
+struct RobotScans {
+  std::string robot_namespace;
+  std::vector<LaserScan> scans;
+  std::optional<Pose2> x_BL;
+};
+
+// Throws std::invalid_argument for a format or compression it cannot write and
 // BagFormatError when the file cannot be written.
+void write_scan_bag(const std::filesystem::path& file, const std::vector<RobotScans>& robots,
+                    const ScanBagExportOptions& options = {});
+// One robot, no namespace.
 void write_scan_bag(const std::filesystem::path& file, const std::vector<LaserScan>& scans,
                     const std::optional<Pose2>& x_BL, const ScanBagExportOptions& options = {});
 

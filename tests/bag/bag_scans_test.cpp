@@ -226,3 +226,34 @@ TEST(BagScans, ARos1BagCutShortByAKilledRecorderIsReadUpToTheCut) {
 
 }  // namespace
 }  // namespace lmf::bag
+
+namespace lmf::bag {
+namespace {
+
+TEST(BagScans, SeveralRobotsInOneBagAreReadByNamespace) {
+  TempDir dir;
+  std::vector<LaserScan> other = synthetic_scans(8);
+  for (auto& scan : other) {
+    scan.odometry = compose(Pose2(5.0, -1.0, 0.5), scan.odometry);
+    for (double& r : scan.ranges_m) r += 0.5;
+  }
+  const Pose2 mount(0.2, 0.0, 0.0);
+  for (const bool as_tf : {false, true}) {
+    for (const BagFormat format : {BagFormat::ros1, BagFormat::mcap}) {
+      const auto file = dir.path() / (format == BagFormat::mcap ? "robots.mcap" : "robots.bag");
+      write_scan_bag(file, {{"/robot1", synthetic_scans(10), std::nullopt}, {"/robot2", other, mount}},
+                     {format, "none", as_tf});
+      SCOPED_TRACE(std::string(to_string(format)) + (as_tf ? " tf" : " odom"));
+      EXPECT_THROW(read_bag_scans(file), std::invalid_argument);  // two LaserScan topics: which robot?
+      BagScanOptions first;
+      first.robot_namespace = "/robot1";
+      expect_same_scans(read_bag_scans(file, first).scans, synthetic_scans(10));
+      BagScanOptions second;
+      second.robot_namespace = "robot2";
+      expect_same_scans(read_bag_scans(file, second).scans, other);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace lmf::bag
