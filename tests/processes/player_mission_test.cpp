@@ -175,16 +175,14 @@ TEST_F(PlayerMission, LockstepAcksEverythingAndEqualsOffline) {
   EXPECT_EQ(counts.segments, offline_counts.segments);
   EXPECT_EQ(counts.submaps, offline_counts.submaps);
   EXPECT_EQ(counts.robots_joined, offline_counts.robots_joined);
-  // Same decisions, same counts. lmf-offline now fuses what local_map_t carries
-  // (float segment lengths), yet since the learned odometry model and the history
-  // scan matcher some runs differ from it by up to ~0.3 mm / 4e-5 rad, others not
-  // at all: a known gap whose cause (timing-dependent input to an agent?) is not
-  // found yet, so the frames are held to 1 mm here.
+  // Same decisions, same counts, and the same frames: lmf-offline fuses what
+  // local_map_t carries (float segment lengths) from scans at the precision
+  // laser_scan_t carries them (at_message_precision).
   for (const auto& frame : offline.global_map().corrected_frames()) {
     const auto ours = s->server->map().corrected_frame(frame.robot_id);
     ASSERT_TRUE(ours.has_value());
     EXPECT_EQ(ours->map_seq, frame.map_seq);
-    EXPECT_TRUE(lmf::is_near(ours->x_WL, frame.x_WL, 1e-3, 1e-4))
+    EXPECT_TRUE(lmf::is_near(ours->x_WL, frame.x_WL, 1e-9, 1e-9))
         << "robot " << frame.robot_id << ": " << ours->x_WL.x - frame.x_WL.x << " " << ours->x_WL.y - frame.x_WL.y
         << " " << ours->x_WL.phi - frame.x_WL.phi;
   }
@@ -395,7 +393,7 @@ TEST_F(PlayerMission, LockstepUnderTwentyPercentScanLossEqualsTheLosslessRunAndK
     const auto ours = lossy->server->map().corrected_frame(frame.robot_id);
     ASSERT_TRUE(ours.has_value());
     EXPECT_EQ(ours->map_seq, frame.map_seq);
-    EXPECT_TRUE(lmf::is_near(ours->x_WL, frame.x_WL, 1e-3, 1e-4)) << "robot " << frame.robot_id;
+    EXPECT_TRUE(lmf::is_near(ours->x_WL, frame.x_WL, 1e-9, 1e-9)) << "robot " << frame.robot_id;
   }
   // The pace: a fixed 1 s wait per loss would take pc.scan_resends seconds more.
   std::cout << "lockstep: lossless " << lossless_s << " s, 20 % scan loss " << lossy_s << " s ("

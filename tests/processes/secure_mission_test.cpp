@@ -188,11 +188,8 @@ TEST(SecureMission, ForgedAndReplayedMessagesAreNotApplied) {
   const lmf::mission::MissionResult expected = offline.run();
   EXPECT_EQ(server.view().fusion_count, static_cast<std::int64_t>(expected.fusions.size()));
   EXPECT_EQ(map->counts().segments, offline.global_map().counts().segments);
-  // Known gap (as in ServerMission): through the server node the frames differ
-  // from lmf-offline's by up to ~0.3 mm / 4e-5 rad since the learned odometry
-  // model and the history scan matcher; the cause is not found yet. Counts and
-  // the number of fusions still match exactly (above).
-  lmf::testing::expect_frames_as_offline(*map, offline.global_map(), 1e-3, 1e-4);
+  // The same frames as lmf-offline (as in ServerMission).
+  lmf::testing::expect_frames_as_offline(*map, offline.global_map(), 1e-9, 1e-9);
 
   // Control: the same unsigned forgery (a) is taken by a server without keys.
   rt::Bus open_network("memq://");
