@@ -58,7 +58,7 @@ install(FILES ${PROJECT_BINARY_DIR}/lmfConfig.cmake ${PROJECT_BINARY_DIR}/lmfCon
 set(LMF_PROGRAMS
   lmf-server lmf-agent lmf-player lmf-monitor
   lmf-offline lmf-sim lmf-score lmf-keygen lmf-grid
-  lmf-scan-svg lmf-local-map-svg lmf-scan-match lmf-nees)
+  lmf-scan-svg lmf-local-map-svg lmf-scan-match lmf-nees lmf-bag-info lmf-convert)
 foreach(program ${LMF_PROGRAMS})
   if(TARGET ${program})
     install(TARGETS ${program} RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT Runtime)

@@ -12,7 +12,7 @@ packages=(
   nlohmann-json3-dev
   zlib1g-dev
   librosbag-storage-dev libboost-filesystem-dev  # lmf/bag: ROS 1 bags through ROS's own library
-  libzstd-dev liblz4-dev libsqlite3-dev  # lmf/bag: MCAP chunks, rosbag2's SQLite3
+  libbz2-dev libzstd-dev liblz4-dev libsqlite3-dev  # lmf/bag: ROS 1 and MCAP chunks, rosbag2's SQLite3
   libssl-dev
   libgtest-dev libgmock-dev
   libbenchmark-dev

@@ -112,6 +112,8 @@ class DataWalker {
     summary_.cut_short = "the file ends without a Data End or Footer record";
   }
 
+  std::set<std::string> compressions;  // of the chunks read ("none" for uncompressed)
+
  private:
   static std::string hex(std::uint8_t v) {
     const char* digits = "0123456789abcdef";
@@ -163,7 +165,7 @@ class DataWalker {
     const std::string compression = f.string("compression");
     const std::span<const std::uint8_t> records = f.bytes(static_cast<std::size_t>(f.uint(8, "records length")), "records");
     const std::string where = "MCAP Chunk at byte " + std::to_string(base);
-    compressions_.insert(compression.empty() ? "none" : compression);
+    compressions.insert(compression.empty() ? "none" : compression);
 
     std::span<const std::uint8_t> plain = records;
     if (!compression.empty()) {
@@ -195,9 +197,6 @@ class DataWalker {
   std::map<std::uint16_t, std::string> schemas_;
   std::map<std::uint16_t, Channel> channels_;
   std::vector<std::uint8_t> buffer_;
-
- public:
-  std::set<std::string> compressions_;
 };
 
 }  // namespace
@@ -208,7 +207,7 @@ BagSummary summarize(const std::filesystem::path& file) {
   walker.walk([&](const Channel& c, std::int64_t log_time, std::span<const std::uint8_t>, std::uint64_t) {
     counter.count(c.topic, c.type, log_time);
   });
-  return counter.finish(walker.compressions_);
+  return counter.finish(walker.compressions);
 }
 
 void for_each_message(const std::filesystem::path& file, const std::set<std::string>& topics,

@@ -1,5 +1,6 @@
 #include "lmf/bag/ros1_bag_writer.hpp"
 
+#include <cstring>
 #include <stdexcept>
 
 #include <ros/message_traits.h>
