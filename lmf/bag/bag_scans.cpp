@@ -9,6 +9,7 @@
 #include <Eigen/Geometry>
 
 #include "lmf/bag/bag_file.hpp"
+#include "lmf/bag/planar_pose.hpp"
 #include "lmf/bag/ros_messages.hpp"
 
 namespace lmf::bag {
@@ -60,19 +61,6 @@ const BagTopic& choose_topic(const BagSummary& summary, const std::string& name,
                                 topic_list(summary, accepts) + "): choose one with " + flag);
   }
   return *found.front();
-}
-
-// The plane's part of a 3D pose: x, y and the heading of the rotated x axis.
-Pose2 planar(const Eigen::Isometry3d& T) {
-  const Eigen::Matrix3d R = T.rotation();
-  return Pose2::from_vector({T.translation().x(), T.translation().y(), std::atan2(R(1, 0), R(0, 0))});
-}
-
-Eigen::Isometry3d isometry(const RosPose3& p) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = p.rotation.normalized().toRotationMatrix();
-  T.translation() = p.translation;
-  return T;
 }
 
 bool finite(const RosPose3& p) { return p.translation.allFinite() && p.rotation.coeffs().allFinite() && p.rotation.norm() > 0.5; }
@@ -234,7 +222,7 @@ BagScans read_bag_scans(const std::filesystem::path& file, const BagScanOptions&
         const RosOdometry o = decode_odometry(m.data, m.encoding);
         if (!finite(o.pose)) return;
         odometry_child = without_leading_slash(o.child_frame_id);
-        odometry.push_back({o.header.stamp_ns == 0 ? m.log_time_ns : o.header.stamp_ns, planar(isometry(o.pose))});
+        odometry.push_back({o.header.stamp_ns == 0 ? m.log_time_ns : o.header.stamp_ns, planar_pose(o.pose)});
       } else if (tf_static_topic != nullptr && m.topic == tf_static_topic->name) {
         for (auto& t : decode_tf_message(m.data, m.encoding)) {
           if (finite(t.transform)) statics.push_back(std::move(t));
@@ -246,7 +234,7 @@ BagScans read_bag_scans(const std::filesystem::path& file, const BagScanOptions&
             continue;
           }
           tf_edges[parent][without_leading_slash(t.child_frame_id)].push_back(
-              {t.header.stamp_ns, planar(isometry(t.transform))});
+              {t.header.stamp_ns, planar_pose(t.transform)});
         }
       }
     } catch (const WireDecodeError& e) {
@@ -298,7 +286,7 @@ BagScans read_bag_scans(const std::filesystem::path& file, const BagScanOptions&
   } else if (!options.no_odometry && !laser_frame.empty() && laser_frame != base_frame) {
     const auto T_BL = static_chain(statics, base_frame, laser_frame);
     if (T_BL) {
-      x_BL = planar(*T_BL);
+      x_BL = planar_pose(*T_BL);
       mirrored = T_BL->rotation()(2, 2) < 0.0;
       out.notes.push_back("laser mounting: /tf_static " + base_frame + " -> " + laser_frame + " (" +
                           std::to_string(x_BL.x) + ", " + std::to_string(x_BL.y) + ", " + std::to_string(x_BL.phi) +

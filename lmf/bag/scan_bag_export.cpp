@@ -5,19 +5,13 @@
 #include <stdexcept>
 
 #include "lmf/bag/mcap_writer.hpp"
+#include "lmf/bag/planar_pose.hpp"
 #include "lmf/bag/ros1_bag_writer.hpp"
 #include "lmf/bag/ros_messages.hpp"
 #include "lmf/bag/wire_encoder.hpp"
 
 namespace lmf::bag {
 namespace {
-
-RosPose3 pose3(const Pose2& x) {
-  RosPose3 p;
-  p.translation = {x.x, x.y, 0.0};
-  p.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(x.phi, Eigen::Vector3d::UnitZ()));
-  return p;
-}
 
 // The message types by their ROS 1 name; ROS 2 adds "/msg".
 std::string ros2_name(const std::string& ros1) { return ros1.substr(0, ros1.find('/')) + "/msg" + ros1.substr(ros1.find('/')); }
@@ -71,7 +65,7 @@ void write_scan_bag(const std::filesystem::path& file, const std::vector<RobotSc
     RosTransform mount;
     mount.header = {first_ns, frame_prefix + "base_link"};
     mount.child_frame_id = frame_prefix + "laser";
-    mount.transform = pose3(mounting);
+    mount.transform = ros_pose(mounting);
     write("/tf_static", "tf2_msgs/TFMessage", first_ns, encode_tf_message({mount}, encoding));
 
     for (const LaserScan& scan : scans) {
@@ -81,13 +75,13 @@ void write_scan_bag(const std::filesystem::path& file, const std::vector<RobotSc
         RosTransform t;
         t.header = {t_ns, frame_prefix + "odom"};
         t.child_frame_id = frame_prefix + "base_link";
-        t.transform = pose3(x_OB);
+        t.transform = ros_pose(x_OB);
         write("/tf", "tf2_msgs/TFMessage", t_ns, encode_tf_message({t}, encoding));
       } else {
         RosOdometry o;
         o.header = {t_ns, frame_prefix + "odom"};
         o.child_frame_id = frame_prefix + "base_link";
-        o.pose = pose3(x_OB);
+        o.pose = ros_pose(x_OB);
         write(topic_prefix + "/odom", "nav_msgs/Odometry", t_ns, encode_odometry(o, encoding));
       }
       RosLaserScan s;
