@@ -4,6 +4,7 @@
 # time. Prints one table (lmf-accuracy) and optionally writes it as JSON and markdown.
 #
 #   scripts/accuracy.sh [--quick | --smoke] [--json FILE] [--markdown FILE] [--work DIR] [--jobs N]
+#                       [--config FILE]
 #
 # Cases (datasets from ../shared/datasets relative to the repository, or LMF_DATASETS_DIR):
 #   NAME-noisy / NAME-realodo for belgioioso, freiburg-101, orebro, acapulco, infinite-corridor,
@@ -15,6 +16,8 @@
 #   a few minutes on 2 cores; the full run stays the reference.
 # --smoke: only belgioioso-noisy split 1 and a 2-minute 3-robot real-odometry sim mission.
 # Without the datasets folder the dataset cases are skipped with a message.
+# --config FILE: every lmf-offline run reads FILE (a change measured on every case; the table
+#   of record is the one without).
 # Binaries come from BUILD_DIR (default build/); scripts/build.sh runs only if one is missing.
 # Each case's outputs stay in the work folder (a temporary one, removed, unless --work).
 # Exit status: 0 when every case ran and was scored, 1 otherwise, 2 for a usage error.
@@ -22,7 +25,7 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${BUILD_DIR:-$root/build}
 datasets=${LMF_DATASETS_DIR:-$root/../shared/datasets}
-smoke=0 quick=0 json_out="" markdown_out="" work="" jobs=2
+smoke=0 quick=0 json_out="" markdown_out="" work="" jobs=2 config=""
 
 usage() { sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; }
 while [[ $# -gt 0 ]]; do
@@ -33,6 +36,7 @@ while [[ $# -gt 0 ]]; do
     --markdown) markdown_out=${2:?--markdown needs a file}; shift ;;
     --work) work=${2:?--work needs a folder}; shift ;;
     --jobs) jobs=${2:?--jobs needs a number}; shift ;;
+    --config) config=${2:?--config needs a file}; shift ;;
     -h|--help) usage; exit 0 ;;
     *) echo "accuracy.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
   esac
@@ -42,7 +46,8 @@ done
 [[ "$jobs" =~ ^[1-9][0-9]*$ ]] || { echo "accuracy.sh: --jobs wants a positive integer" >&2; exit 2; }
 # Output paths are used after a cd-free run, but make them absolute anyway.
 abs() { [[ -z "$1" || "$1" == /* ]] && echo "$1" || echo "$PWD/$1"; }
-json_out=$(abs "$json_out"); markdown_out=$(abs "$markdown_out")
+json_out=$(abs "$json_out"); markdown_out=$(abs "$markdown_out"); config=$(abs "$config")
+[[ -z "$config" || -f "$config" ]] || { echo "accuracy.sh: no config file $config" >&2; exit 2; }
 
 tools=(lmf-offline lmf-sim lmf-accuracy)
 for t in "${tools[@]}"; do
@@ -67,6 +72,7 @@ commands=()
 add_case() { names+=("$1"); commands+=("$2"); }
 
 offline="$build/tools/lmf-offline"
+[[ -n "$config" ]] && offline="$offline\" --config \"$config"
 sim="$build/tools/lmf-sim"
 dataset_case() {  # NAME KIND SPLIT
   add_case "$1-$2-split$3" \
@@ -140,7 +146,7 @@ total=$(awk -v s="$start" -v e="$(date +%s.%N)" 'BEGIN { printf "%.1f", e - s }'
 case_args=()
 for name in "${names[@]}"; do case_args+=(--case "$name=$work/$name"); done
 report_args=(--total-wall-s "$total"
-             --note "lmf-offline with the built-in default configuration (no --config); $jobs cases at a time"
+             --note "lmf-offline with ${config:-the built-in default configuration (no --config)}; $jobs cases at a time"
              --note "commit $(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown)$(git -C "$root" diff --quiet 2>/dev/null || echo ' (with local changes)')")
 [[ -n "$json_out" ]] && report_args+=(--json "$json_out")
 [[ -n "$markdown_out" ]] && report_args+=(--markdown "$markdown_out")
