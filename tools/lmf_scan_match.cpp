@@ -133,12 +133,13 @@ int run(const Options& o) {
       if (rank > 0) laser_nees.push_back(e.dot(m->laser_information * e) / rank);
     }
     if (o.per_scan) {
+      const lmf::Pose2 error = lmf::between(m->x_AB, truth);
       std::printf("%4zu  odometry %.3f m %.2f deg  match %.3f m %.2f deg  NEES %.1f  points %d  rms %.3f m  "
-                  "iterations %d  score %.2f  prior d2 %.1f  %.0f us\n",
+                  "iterations %d  score %.2f  prior d2 %.1f  %.0f us  error %+.4f %+.4f %+.5f\n",
                   k, odometry.translation_m.back(), odometry.rotation_rad.back() * 180.0 / std::numbers::pi,
                   matched.translation_m.back(), matched.rotation_rad.back() * 180.0 / std::numbers::pi,
                   matched.nees.back(), m->correspondences, m->rms_m, m->iterations, m->search_score,
-                  m->prior_distance2, micros.back());
+                  m->prior_distance2, micros.back(), error.x, error.y, lmf::wrap_angle(error.phi));
     }
   }
   const double chi2_95 = boost::math::quantile(boost::math::chi_squared_distribution<double>(3.0), 0.95);
@@ -176,7 +177,8 @@ int main(int argc, char** argv) {
       "JSON LocalMapConfig (odometry noise and the scan_matching section; matching is on regardless)")(
       "per-scan", po::bool_switch(&o.per_scan),
       "one line per increment: k, odometry and match errors (m, deg), match NEES, matched points, RMS (m),\n"
-      "Gauss-Newton iterations");
+      "Gauss-Newton iterations, search score, prior d2, CPU time, and the signed match error\n"
+      "(x, y in m, phi in rad: the reference increment seen from the match)");
   if (const auto exit_code = lmf::tools::parse_command_line(argc, argv, options, "lmf-scan-match")) return *exit_code;
   return lmf::tools::run_reporting_errors("lmf-scan-match", [&] { return run(o); });
 }

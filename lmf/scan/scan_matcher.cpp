@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <unordered_set>
@@ -299,14 +300,30 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
     int matched = 0;
     double sum_e2 = 0.0;
     double sum_we2 = 0.0;
+    // Lag-1 products of the Huber-clipped residuals of neighbouring points (B
+    // is in beam order), for their correlation ρ along the scan.
+    double sum_c2 = 0.0;
+    double sum_lag = 0.0;
+    int lag_pairs = 0;
+    std::optional<double> previous_clipped;
     const Eigen::Matrix2d R = rotation(x.phi);
     const Eigen::Vector2d t(x.x, x.y);
     for (const Eigen::Vector2d& b : B) {
       const Eigen::Vector2d q = t + R * b;  // x ⊙ b: b in A's frame
       const int j = A.nearest(q, gate);
-      if (j < 0) continue;
+      if (j < 0) {
+        previous_clipped.reset();
+        continue;
+      }
       const Eigen::Vector2d& n = A.normals()[static_cast<std::size_t>(j)];
       const double e = n.dot(q - A.points()[static_cast<std::size_t>(j)]);
+      const double clipped = std::clamp(e, -huber, huber);
+      sum_c2 += clipped * clipped;
+      if (previous_clipped) {
+        sum_lag += clipped * *previous_clipped;
+        ++lag_pairs;
+      }
+      previous_clipped = clipped;
       const Eigen::RowVector3d J = point_to_line_row(R, b, n);
       const double w = std::abs(e) <= huber ? 1.0 : huber / std::abs(e);
       const Eigen::Matrix3d JtJ = J.transpose() * J;
@@ -326,8 +343,16 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
     // Λ' = (I + Λ C_m)⁻¹ Λ, and the gradient of the widened term (I + Λ C_m)⁻¹ g.
     // σ² is the larger of the configured and the residuals' own (Huber-weighted) variance.
     const double residual_sigma2 = config.residual_sigma ? sum_we2 / (matched - 3) : 0.0;
-    const double laser_weight =
-        std::min(1.0, config.max_independent_points / matched) / std::max(sigma2, residual_sigma2);
+    // Correlated residuals (AR(1) along the scan) count as N (1 − ρ) / (1 + ρ)
+    // independent points; ρ is their lag-1 covariance over the variance the
+    // point error is taken to have (σ², or their own when larger), so residuals
+    // well inside σ (a clean scan) leave the count as it is.
+    const double point_variance = std::max(sigma2, sum_c2 / matched);
+    const double rho = config.residual_correlation && lag_pairs > 0
+                           ? std::clamp(sum_lag / lag_pairs / point_variance, 0.0, 0.99)
+                           : 0.0;
+    const double independent_points = std::min(config.max_independent_points, matched * (1.0 - rho) / (1.0 + rho));
+    const double laser_weight = independent_points / matched / std::max(sigma2, residual_sigma2);
     const Eigen::Matrix3d Lambda = laser_weight * A_laser;
     const Eigen::Matrix3d widen = (Eigen::Matrix3d::Identity() + Lambda * C_m).inverse();
     Eigen::Matrix3d Lambda_widened = widen * Lambda;

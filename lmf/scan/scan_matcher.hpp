@@ -24,10 +24,11 @@
 // The laser term is Λ = s Σ_i w_i J_iᵀ J_i / σ² (J_i the Jacobian of the
 // point-to-line distance e_i = n_jᵀ (x ⊙ b_i − a_j) with respect to δ in
 // x ⊕ δ, w_i Huber weights, correspondences j(i) the nearest reference point
-// within a gate, re-found each iteration), scaled by s to at most
-// `max_independent_points` effective points: neighbouring points' errors are
-// correlated and the segment observations use the same points again, so the
-// raw count would make it overconfident. Λ⁻¹ is then widened by a model noise
+// within a gate, re-found each iteration), scaled by s to the effective number
+// of independent points: N (1 − ρ)/(1 + ρ) for residuals with lag-1
+// correlation ρ along the scan (`residual_correlation`), and at most
+// `max_independent_points` (the segment observations use the same points
+// again), so that the raw count does not make it overconfident. Λ⁻¹ is then widened by a model noise
 // C_m (walls are not perfect lines, the scans not instantaneous),
 // Λ' = (Λ⁻¹ + C_m)⁻¹ = (I + Λ C_m)⁻¹ Λ, which stays defined where Λ is singular
 // (a corridor). Gauss–Newton on x ← x ⊕ δ then solves the maximum a posteriori
@@ -121,13 +122,19 @@ struct ScanMatcherConfig {
   double point_sigma_m = 0.03;
   double huber_k = 2.0;
   // When set, σ² = max(point_sigma_m², Σ_i w_i e_i² / (N − 3)): the laser
-  // term is also calibrated on the match's own residuals. Off by default: it
-  // brings the matched increments' NEES on the orebro logs from ~9 to 5.6–7.4,
-  // but a wider match covariance leaves more of the local map's heading to its
-  // segment updates there, and two orebro-realodo runs lose their loop
-  // closure (docs/results.md, "Match covariance from the residuals").
+  // term is also calibrated on the match's own residuals (off by default;
+  // docs/results.md, "Match covariance from the residuals").
   bool residual_sigma = false;
-  // The laser information is scaled to at most this many independent points ...
+  // When set, the matched points count as N (1 − ρ) / (1 + ρ) independent
+  // ones (an AR(1) sequence along the scan), ρ ∈ [0, 0.99] the lag-1
+  // covariance of the Huber-clipped residuals of neighbouring beams over the
+  // point variance (point_sigma_m², or the residuals' own when larger): a
+  // wall bent away from its line, or a reference point's line off, moves
+  // many neighbouring residuals together, and they are then one
+  // measurement, not many. White range noise, or residuals well inside
+  // point_sigma_m, give ρ ≈ 0 and the count alone.
+  bool residual_correlation = true;
+  // The laser information counts at most this many independent points ...
   double max_independent_points = 20.0;
   // ... and its covariance widened by this model noise: std of x and y (m), of
   // the angle (rad), and of the angle per radian turned (a scan taken while

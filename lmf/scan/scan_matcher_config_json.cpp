@@ -29,6 +29,7 @@ void read_scan_matcher_config(io::JsonReader& reader, ScanMatcherConfig& config)
   reader.read("point_sigma_m", config.point_sigma_m, io::positive());
   reader.read("huber_k", config.huber_k, io::positive());
   reader.read("residual_sigma", config.residual_sigma);
+  reader.read("residual_correlation", config.residual_correlation);
   reader.read("max_independent_points", config.max_independent_points, io::positive());
   reader.read("model_noise_m", config.model_noise_m, io::non_negative());
   reader.read("model_noise_rad", config.model_noise_rad, io::non_negative());

@@ -177,6 +177,49 @@ TEST(ScanMatcher, ResidualSigmaWidensTheLaserTermOnlyForScansNoisierThanConfigur
   }
 }
 
+// residual_correlation: residuals that follow each other along the scan (a wall
+// bent, or seen through a window, over many beams) are fewer independent
+// measurements than points. Their lag-1 correlation ρ gives N (1 − ρ)/(1 + ρ)
+// (AR(1)), and the laser information shrinks accordingly; white range noise,
+// or residuals far inside point_sigma_m, leave ρ near 0 and the information as
+// the count alone gives it.
+TEST(ScanMatcher, ResidualsCorrelatedAlongTheScanCountAsFewerIndependentPoints) {
+  const Pose2 x_WA(0.0, 0.0, 0.1);
+  const Pose2 x_WB(0.8, 0.3, 0.25);
+  const Pose2 u_hat = compose(between(x_WA, x_WB), Pose2(0.05, -0.03, 0.02));
+  const Eigen::Matrix3d Q = odometry_like_covariance(u_hat);
+  ScanMatcherConfig counted;
+  counted.residual_sigma = false;
+  counted.residual_correlation = false;
+  // The laser term alone: neither capped by the count nor by the model noise.
+  counted.max_independent_points = 1000.0;
+  counted.model_noise_m = 0.0;
+  counted.model_noise_rad = 0.0;
+  ScanMatcherConfig correlated = counted;
+  correlated.residual_correlation = true;
+  std::mt19937 rng(5);
+  const LaserScan A = testing::make_scan(room(), x_WA, 361, 80.0, 0.005, &rng);
+  // Range errors of 4 cm RMS (above point_sigma_m's 3 cm), white ...
+  const LaserScan white = testing::make_scan(room(), x_WB, 361, 80.0, 0.04, &rng);
+  // ... and as a slow ripple over ~40 beams.
+  LaserScan ripple = testing::make_scan(room(), x_WB, 361, 80.0, 0.0, &rng);
+  for (std::size_t i = 0; i < ripple.ranges_m.size(); ++i) {
+    ripple.ranges_m[i] += 0.04 * std::sqrt(2.0) * std::sin(2.0 * std::numbers::pi * static_cast<double>(i) / 40.0);
+  }
+  const auto information_ratio = [&](const LaserScan& B) {
+    const auto a = match_scans(ReferenceScan::from(A, counted), scan_points(B, counted), u_hat, Q, counted);
+    const auto b = match_scans(ReferenceScan::from(A, correlated), scan_points(B, correlated), u_hat, Q, correlated);
+    EXPECT_TRUE(a && b);
+    if (!a || !b) return 0.0;
+    EXPECT_TRUE(symmetric_positive_definite(b->covariance));
+    return b->laser_information.trace() / a->laser_information.trace();
+  };
+  EXPECT_GT(information_ratio(white), 0.9);
+  EXPECT_LT(information_ratio(ripple), 0.5);
+  // A clean scan (1 mm noise): residuals far inside point_sigma_m, the count as it is.
+  EXPECT_GT(information_ratio(testing::make_scan(room(), x_WB, 361, 80.0, 0.001, &rng)), 0.9);
+}
+
 // field_along_lines: the correlative search's likelihood field stands for the
 // reference's walls, not for where its beams hit them. A sparse laser (1°
 // between beams, like orebro's) sees the room again from the same place, its beams half a
