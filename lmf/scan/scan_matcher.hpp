@@ -28,8 +28,9 @@
 // of independent points: N (1 − ρ)/(1 + ρ) for residuals with lag-1
 // correlation ρ along the scan (`residual_correlation`), and at most
 // `max_independent_points` (the segment observations use the same points
-// again), so that the raw count does not make it overconfident. Λ⁻¹ is then widened by a model noise
-// C_m (walls are not perfect lines, the scans not instantaneous),
+// again), so that the raw count does not make it overconfident. Λ⁻¹ is then
+// widened by a model noise C_m (walls are not perfect lines, the scans not
+// instantaneous),
 // Λ' = (Λ⁻¹ + C_m)⁻¹ = (I + Λ C_m)⁻¹ Λ, which stays defined where Λ is singular
 // (a corridor). Gauss–Newton on x ← x ⊕ δ then solves the maximum a posteriori
 // problem of that laser term and the prior r(x) = between(û, x) ~ N(0, Q); the
