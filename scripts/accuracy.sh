@@ -72,14 +72,15 @@ commands=()
 add_case() { names+=("$1"); commands+=("$2"); }
 
 offline="$build/tools/lmf-offline"
-[[ -n "$config" ]] && offline="$offline\" --config \"$config"
+config_option=""  # spliced into each case's lmf-offline command
+[[ -n "$config" ]] && config_option=" --config \"$config\""
 sim="$build/tools/lmf-sim"
 dataset_case() {  # NAME KIND SPLIT
   add_case "$1-$2-split$3" \
-    "\"$offline\" --log \"$datasets/$1-$2.log.gz\" --split $3 --gt \"$datasets/$1-$2.gt\" --out \"\$dir\""
+    "\"$offline\"$config_option --log \"$datasets/$1-$2.log.gz\" --split $3 --gt \"$datasets/$1-$2.gt\" --out \"\$dir\""
 }
 sim_case() {  # NAME lmf-sim-arguments
-  add_case "$1" "\"$sim\" $2 --out \"\$dir/mission\" >\"\$dir/sim.txt\" && \"$offline\" --sim \"\$dir/mission\" --out \"\$dir\""
+  add_case "$1" "\"$sim\" $2 --out \"\$dir/mission\" >\"\$dir/sim.txt\" && \"$offline\"$config_option --sim \"\$dir/mission\" --out \"\$dir\""
 }
 
 if [[ -d "$datasets" ]]; then
