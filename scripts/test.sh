@@ -24,6 +24,12 @@ end() {
 summary() {
   echo "== phase times"
   for p in "${phases[@]}"; do echo "   $p"; done
+  # Disk: what the build trees take and what is left (a full disk fails a link).
+  echo "== disk"
+  for d in "${BUILD_DIR:-$root/build}" "${BUILD_DIR_ASAN:-$root/build-asan}"; do
+    [[ -d $d ]] && du -sh "$d" 2>/dev/null | sed 's/^/   /'
+  done
+  df -h "$root" 2>/dev/null | awk 'NR == 2 { print "   free: " $4 " of " $2 }'
 }
 trap summary EXIT
 
