@@ -20,17 +20,23 @@
 namespace lmf::mission {
 namespace {
 
+// The mission lmf-sim would write for `config`, read back as lmf-offline --sim reads it.
+MissionInputs simulated_inputs(const sim::MissionConfig& config, const std::string& name) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("lmf_" + name + "_" + std::to_string(::getpid()));
+  sim::write_mission(sim::simulate_mission(config), dir);
+  MissionInputs inputs = load_sim_folder(dir, SightingNoise{});
+  std::filesystem::remove_all(dir);
+  return inputs;
+}
+
 TEST(RealOdometryMission, ThreeRobotsJoinFuseEveryLocalMapAndStayNearTheTruth) {
   sim::MissionConfig sim_config;
   sim_config.num_robots = 3;
   sim_config.seed = 2;
   sim_config.duration_s = 240.0;  // 4 minutes, ~110 m per robot
   sim_config.odometry_model = sim::OdometryModel::kReal;
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() / ("lmf_real_odometry_mission_" + std::to_string(::getpid()));
-  sim::write_mission(sim::simulate_mission(sim_config), dir);
-  const MissionInputs inputs = load_sim_folder(dir, SightingNoise{});
-  std::filesystem::remove_all(dir);
+  const MissionInputs inputs = simulated_inputs(sim_config, "real_odometry_mission");
   ASSERT_EQ(inputs.robots.size(), 3u);
 
   OfflineMission mission(MissionConfig{}, inputs);  // the built-in defaults, no config file
@@ -82,11 +88,7 @@ TEST(RealOdometryMission, GlitchesLargerThanTheSearchWindowBendNoLocalMap) {
   sim_config.real_odometry.translation_glitch_rate_per_m = 0.03;
   sim_config.real_odometry.translation_glitch_min_m = 0.35;
   sim_config.real_odometry.translation_glitch_max_m = 0.5;
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() / ("lmf_glitch_mission_" + std::to_string(::getpid()));
-  sim::write_mission(sim::simulate_mission(sim_config), dir);
-  const MissionInputs inputs = load_sim_folder(dir, SightingNoise{});
-  std::filesystem::remove_all(dir);
+  const MissionInputs inputs = simulated_inputs(sim_config, "glitch_mission");
   ASSERT_EQ(inputs.robots.size(), 1u);
 
   // The test means something: increments whose odometry error lies outside the window.
