@@ -42,6 +42,7 @@ void ScanHistory::add(OrientedPoints points, const Pose2& x_NN, bool connected) 
       all.points.push_back(t + R * k.points.points[i]);
       all.normals.push_back(R * k.points.normals[i]);
     }
+    for (const Eigen::Vector2d& p : k.points.unoriented) all.unoriented.push_back(t + R * p);
   }
   reference_ = ReferenceScan::from_points(all, config_);
 }

@@ -135,14 +135,20 @@ OrientedPoints oriented_points(const LaserScan& scan, const ScanMatcherConfig& c
            (beam_points[hi + 1] - beam_points[i]).norm() <= config.normal_radius_m) {
       ++hi;
     }
-    if (hi - lo + 1 < 4) continue;
+    if (hi - lo + 1 < 4) {
+      out.unoriented.push_back(beam_points[i]);
+      continue;
+    }
     Eigen::Vector2d mean = Eigen::Vector2d::Zero();
     for (std::size_t k = lo; k <= hi; ++k) mean += beam_points[k];
     mean /= static_cast<double>(hi - lo + 1);
     Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
     for (std::size_t k = lo; k <= hi; ++k) scatter += (beam_points[k] - mean) * (beam_points[k] - mean).transpose();
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(scatter);
-    if (!(es.eigenvalues()(0) <= config.max_normal_flatness * es.eigenvalues()(1))) continue;
+    if (!(es.eigenvalues()(0) <= config.max_normal_flatness * es.eigenvalues()(1))) {
+      out.unoriented.push_back(beam_points[i]);
+      continue;
+    }
     Eigen::Vector2d normal = es.eigenvectors().col(0);
     if (normal.dot(beam_points[i]) > 0.0) normal = -normal;  // towards the sensor
     out.points.push_back(beam_points[i]);
@@ -168,6 +174,10 @@ ReferenceScan ReferenceScan::from_points(const OrientedPoints& given, const Scan
     A.points_.push_back(given.points[i]);
     A.normals_.push_back(given.normals[i]);
     A.bounds_.extend(given.points[i]);
+  }
+  for (const std::size_t i : thinned(given.unoriented, config.reference_voxel_m)) {
+    A.unoriented_.push_back(given.unoriented[i]);
+    A.bounds_.extend(given.unoriented[i]);
   }
   if (A.points_.empty()) return A;
   // Counting sort of the points into cells of last_gate_m.
@@ -472,7 +482,9 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
   const Eigen::AlignedBox2d region = reach.intersection(reference_bounds);
   if (region.isEmpty()) return std::nullopt;
   // Enough levels that one top-level block spans the window's translations.
-  const LikelihoodField field(config.field_along_lines ? points_along_lines(A, resolution) : A.points(), region,
+  std::vector<Eigen::Vector2d> field_points = config.field_along_lines ? points_along_lines(A, resolution) : A.points();
+  field_points.insert(field_points.end(), A.unoriented_points().begin(), A.unoriented_points().end());
+  const LikelihoodField field(field_points, region,
                               resolution, resolution, LikelihoodField::levels_for(window.linear_m, resolution));
   const std::optional<CorrelativeResult> search =
       correlative_search(field, search_points, u_hat, window, config.min_overlap, config.ambiguity_ratio);

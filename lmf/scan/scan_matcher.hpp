@@ -91,8 +91,10 @@ struct ScanMatcherConfig {
   // The best pose of the window must explain at least this share of the scan's
   // points (mean likelihood): less, and the scans barely overlap.
   double min_overlap = 0.25;
-  // The search's likelihood field is drawn from the reference points and from
-  // samples along each one's line (± search_resolution_m along the tangent of
+  // The search's likelihood field is drawn from all of the reference's usable
+  // points, as the search scores all of the scan's (those without a normal as
+  // they are: a sparse laser's far walls, corners, clutter), and from samples
+  // along each oriented point's line (± search_resolution_m along the tangent of
   // its normal), so it stands for the walls rather than for where the beams
   // hit them: a sparse laser's walls (1° between beams: 17 cm apart at 10 m)
   // otherwise score between their points as if missing.
@@ -158,10 +160,13 @@ struct ScanMatcherConfig {
 
 // Points of a scan with unit normals facing the sensor, in the scan's frame:
 // those usable points whose beam neighbours (normal_radius_m, max_normal_flatness)
-// lie on a line.
+// lie on a line; and the other usable points (corners, clutter, walls too far
+// for their beams to be normal_radius_m apart), which have no line to be
+// matched against but still show where the scan saw something.
 struct OrientedPoints {
   std::vector<Eigen::Vector2d> points;
   std::vector<Eigen::Vector2d> normals;
+  std::vector<Eigen::Vector2d> unoriented;
 };
 OrientedPoints oriented_points(const LaserScan& scan, const ScanMatcherConfig& config);
 
@@ -179,6 +184,10 @@ class ReferenceScan {
 
   const std::vector<Eigen::Vector2d>& points() const { return points_; }
   const std::vector<Eigen::Vector2d>& normals() const { return normals_; }
+  // The usable points without a normal (thinned alike): the correlative
+  // search's likelihood field is drawn from them as well, since it scores all
+  // of the current scan's points, not only those on lines.
+  const std::vector<Eigen::Vector2d>& unoriented_points() const { return unoriented_; }
   std::size_t size() const { return points_.size(); }
   const Eigen::AlignedBox2d& bounds() const { return bounds_; }
   // The index of the reference point nearest to q within `gate` (m), -1 when none.
@@ -187,6 +196,7 @@ class ReferenceScan {
  private:
   std::vector<Eigen::Vector2d> points_;
   std::vector<Eigen::Vector2d> normals_;
+  std::vector<Eigen::Vector2d> unoriented_;
   Eigen::AlignedBox2d bounds_;
   // Cells of cell_m_ from bounds_.min(): cell c holds cell_points_[cell_start_[c] .. cell_start_[c + 1]).
   double cell_m_ = 1.0;

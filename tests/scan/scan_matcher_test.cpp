@@ -348,6 +348,58 @@ TEST(ScanMatcher, TheSearchFindsAnIncrementFarOutsideTheLocalBasin) {
   }
 }
 
+// Every usable point of a scan is either oriented (it has a normal) or not.
+TEST(ScanMatcher, EveryUsablePointIsOrientedOrUnoriented) {
+  ScanMatcherConfig config;
+  const LaserScan scan = testing::make_scan(room(), Pose2(0.5, 0.2, 0.3), 361);
+  const OrientedPoints p = oriented_points(scan, config);
+  EXPECT_EQ(p.points.size() + p.unoriented.size(), scan_points(scan, config).size());
+  EXPECT_EQ(p.points.size(), p.normals.size());
+  EXPECT_GT(p.unoriented.size(), 0u);  // the corners and the pillar's edges
+  const ReferenceScan reference = ReferenceScan::from_points(p, config);
+  EXPECT_GT(reference.unoriented_points().size(), 0u);
+  EXPECT_LE(reference.unoriented_points().size(), p.unoriented.size());
+}
+
+// A hall seen with a sparse laser (1° between beams): one near wall gives the
+// lines the refinement needs, the far walls (15-25 m, beams 0.3-0.4 m apart)
+// give no normals, yet are most of the scan. The search scores all of the
+// scan's points, so its field must be drawn from all of the reference's: from
+// its oriented points alone, most of the scan would score as unseen and the
+// match would be refused for too little overlap.
+TEST(ScanMatcher, FarWallsWithoutNormalsStillCountAsOverlap) {
+  testing::SyntheticWorld hall;
+  hall.walls = {{{-1.0, -1.5}, {4.0, -1.5}},   {{4.0, -1.5}, {4.0, -2.5}},  // a near cabinet
+                {{-25.0, -20.0}, {25.0, -20.0}}, {{25.0, -20.0}, {25.0, 15.0}},
+                {{25.0, 15.0}, {-25.0, 15.0}},  {{-25.0, 15.0}, {-25.0, -20.0}}};
+  const Pose2 x_WA(0.0, 0.0, 0.0);
+  const Pose2 x_WB(0.4, 0.05, 0.03);
+  const LaserScan A = testing::make_scan(hall, x_WA, 181);
+  const LaserScan B = testing::make_scan(hall, x_WB, 181);
+  const Pose2 truth = between(x_WA, x_WB);
+  const Pose2 u_hat = compose(truth, Pose2(0.05, -0.03, 0.02));
+  const Eigen::Matrix3d Q = odometry_like_covariance(u_hat);
+  ScanMatcherConfig config;
+  const OrientedPoints reference_points = oriented_points(A, config);
+  ASSERT_GT(reference_points.unoriented.size(), reference_points.points.size());
+  const std::vector<Eigen::Vector2d> points = scan_points(B, config);
+
+  const std::optional<ScanMatch> m =
+      match_scans(ReferenceScan::from_points(reference_points, config), points, u_hat, Q, config);
+  ASSERT_TRUE(m.has_value());
+  // Across the near wall and in heading the laser decides; along it (x) only
+  // the cabinet's 1 m end does, and the estimate stays within its covariance.
+  const Pose2 e = between(m->x_AB, truth);
+  EXPECT_LT(std::abs(e.y), 0.02);
+  EXPECT_LT(std::abs(e.phi), 0.01);
+  const Eigen::Vector3d p(e.x, e.y, e.phi);
+  EXPECT_LT(p.dot(m->covariance.ldlt().solve(p)), 16.3);  // chi2inv(0.999, 3)
+
+  OrientedPoints oriented_only = reference_points;
+  oriented_only.unoriented.clear();
+  EXPECT_FALSE(match_scans(ReferenceScan::from_points(oriented_only, config), points, u_hat, Q, config).has_value());
+}
+
 // A row of thin posts 0.25 m apart and nothing else: shifts by one spacing
 // along the row score alike and move every point: ambiguous, refused.
 TEST(ScanMatcher, AnAmbiguousSceneIsRefused) {
