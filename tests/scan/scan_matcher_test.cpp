@@ -141,6 +141,18 @@ TEST(ScanMatcher, RecoversAKnownIncrementInARoom) {
   EXPECT_LT(p.dot(m->covariance.ldlt().solve(p)), 16.3);
 }
 
+// One increment matched under two configurations (the reference and the scan's
+// points prepared for each): for tests that compare what an option changes.
+struct MatchPair {
+  std::optional<ScanMatch> a;
+  std::optional<ScanMatch> b;
+};
+MatchPair match_under_both(const LaserScan& A, const LaserScan& B, const Pose2& u_hat, const Eigen::Matrix3d& Q,
+                           const ScanMatcherConfig& config_a, const ScanMatcherConfig& config_b) {
+  return {match_scans(ReferenceScan::from(A, config_a), scan_points(B, config_a), u_hat, Q, config_a),
+          match_scans(ReferenceScan::from(A, config_b), scan_points(B, config_b), u_hat, Q, config_b)};
+}
+
 // residual_sigma: the laser term's σ² is the larger of point_sigma_m² and the
 // residuals' own variance. Scans noisier than point_sigma_m get less laser
 // information in proportion; scans within it the same as without the option.
@@ -157,10 +169,7 @@ TEST(ScanMatcher, ResidualSigmaWidensTheLaserTermOnlyForScansNoisierThanConfigur
     std::mt19937 rng(11);
     const LaserScan A = testing::make_scan(room(), x_WA, 361, 80.0, range_noise_m, &rng);
     const LaserScan B = testing::make_scan(room(), x_WB, 361, 80.0, range_noise_m, &rng);
-    const std::optional<ScanMatch> a =
-        match_scans(ReferenceScan::from(A, fixed), scan_points(B, fixed), u_hat, Q, fixed);
-    const std::optional<ScanMatch> b =
-        match_scans(ReferenceScan::from(A, calibrated), scan_points(B, calibrated), u_hat, Q, calibrated);
+    const auto [a, b] = match_under_both(A, B, u_hat, Q, fixed, calibrated);
     ASSERT_TRUE(a && b) << range_noise_m;
     ASSERT_TRUE(symmetric_positive_definite(b->covariance));
     const double ratio = b->laser_information.trace() / a->laser_information.trace();
@@ -207,8 +216,7 @@ TEST(ScanMatcher, ResidualsCorrelatedAlongTheScanCountAsFewerIndependentPoints) 
     ripple.ranges_m[i] += 0.04 * std::sqrt(2.0) * std::sin(2.0 * std::numbers::pi * static_cast<double>(i) / 40.0);
   }
   const auto information_ratio = [&](const LaserScan& B) {
-    const auto a = match_scans(ReferenceScan::from(A, counted), scan_points(B, counted), u_hat, Q, counted);
-    const auto b = match_scans(ReferenceScan::from(A, correlated), scan_points(B, correlated), u_hat, Q, correlated);
+    const auto [a, b] = match_under_both(A, B, u_hat, Q, counted, correlated);
     EXPECT_TRUE(a && b);
     if (!a || !b) return 0.0;
     EXPECT_TRUE(symmetric_positive_definite(b->covariance));
