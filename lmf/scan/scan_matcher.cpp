@@ -124,15 +124,21 @@ OrientedPoints oriented_points(const LaserScan& scan, const ScanMatcherConfig& c
   constexpr std::size_t kMaxNeighbourBeams = 10;
   for (std::size_t i = 0; i < n; ++i) {
     if (!valid[i]) continue;
-    // Neighbours in beam order, contiguous and within normal_radius_m of point i.
+    // Neighbours in beam order, contiguous and within the radius of point i:
+    // normal_radius_m, or where the beams are farther apart, two beam steps
+    // at this range on a surface up to 37° from facing the sensor
+    // (2 r Δθ / cos 37° = 2.5 r Δθ), so a sparse laser's far walls have the
+    // four points a normal needs.
+    const double radius =
+        std::max(config.normal_radius_m, 2.5 * scan.ranges_m[i] * std::abs(scan.angle_increment_rad));
     std::size_t lo = i;
     std::size_t hi = i;
     while (lo > 0 && i - lo < kMaxNeighbourBeams && valid[lo - 1] &&
-           (beam_points[lo - 1] - beam_points[i]).norm() <= config.normal_radius_m) {
+           (beam_points[lo - 1] - beam_points[i]).norm() <= radius) {
       --lo;
     }
     while (hi + 1 < n && hi - i < kMaxNeighbourBeams && valid[hi + 1] &&
-           (beam_points[hi + 1] - beam_points[i]).norm() <= config.normal_radius_m) {
+           (beam_points[hi + 1] - beam_points[i]).norm() <= radius) {
       ++hi;
     }
     if (hi - lo + 1 < 4) {

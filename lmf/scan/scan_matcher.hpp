@@ -70,8 +70,11 @@ struct ScanMatcherConfig {
   // it beyond chi2inv(1 - object_consistency_alpha, 3): then they moved.
   double object_consistency_alpha = 0.01;
   // A reference point gets a normal from its beam neighbours within this
-  // distance (m) when they lie on a line (smallest / largest scatter eigenvalue
-  // below max_normal_flatness); points without one are not used.
+  // distance (m), or within 2.5 r Δθ where the beams are farther apart (two beam
+  // steps at the point's range r, on a surface up to 37° from facing the
+  // sensor), when they lie on a line (smallest / largest scatter eigenvalue
+  // below max_normal_flatness); points without one still count in the search's
+  // field, not in the refinement.
   double normal_radius_m = 0.5;
   double max_normal_flatness = 0.1;
 
@@ -160,8 +163,8 @@ struct ScanMatcherConfig {
 
 // Points of a scan with unit normals facing the sensor, in the scan's frame:
 // those usable points whose beam neighbours (normal_radius_m, max_normal_flatness)
-// lie on a line; and the other usable points (corners, clutter, walls too far
-// for their beams to be normal_radius_m apart), which have no line to be
+// lie on a line; and the other usable points (corners, clutter, walls seen at
+// grazing incidence), which have no line to be
 // matched against but still show where the scan saw something.
 struct OrientedPoints {
   std::vector<Eigen::Vector2d> points;
