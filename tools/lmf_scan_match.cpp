@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <iostream>
 #include <numbers>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -18,6 +19,7 @@
 #include <boost/math/distributions/chi_squared.hpp>
 #include <boost/program_options.hpp>
 
+#include "lmf/eval/match_closure.hpp"
 #include "lmf/io/carmen.hpp"
 #include "lmf/local_map/local_map_config_json.hpp"
 #include "lmf/local_map/local_map_measurements.hpp"
@@ -83,8 +85,67 @@ struct Options {
   std::string config_file;
   double q_scale = 1.0;
   bool per_scan = false;
+  bool closure = false;
 };
 
+
+// --closure: for every three consecutive scans A, B, C, the pairwise matches
+// (each against the one scan alone), scored against the reference, and the
+// closure of the three (match_closure.hpp), which needs none.
+int run_closure(const Options& o, const lmf::io::CarmenLog& log, const std::vector<lmf::StampedPose>& reference,
+                const lmf::LocalMapConfig& config) {
+  const lmf::ScanMatcherConfig& matching = config.scan_matching;
+  const auto match = [&](std::size_t a, std::size_t b) {
+    const lmf::Pose2 u = lmf::between(log.scans[a].odometry, log.scans[b].odometry);
+    return lmf::match_scans(lmf::ReferenceScan::from(log.scans[a], matching),
+                            lmf::scan_points_by_kind(log.scans[b], matching), u,
+                            o.q_scale * lmf::local_map::odometry_noise(u, config), matching);
+  };
+  Errors pairwise;
+  std::vector<Eigen::Vector3d> pairwise_errors;
+  std::vector<Eigen::Vector3d> closures;
+  std::vector<double> closure_nees;
+  std::optional<lmf::ScanMatch> previous = log.scans.size() > 1 ? match(0, 1) : std::nullopt;
+  for (std::size_t k = 2; k < log.scans.size(); ++k) {
+    const std::optional<lmf::ScanMatch> ab = previous;
+    const std::optional<lmf::ScanMatch> bc = match(k - 1, k);
+    const std::optional<lmf::ScanMatch> ac = match(k - 2, k);
+    previous = bc;
+    if (ab) {
+      const lmf::Pose2 truth = lmf::between(reference[k - 2].pose, reference[k - 1].pose);
+      pairwise.add(ab->x_AB, ab->covariance, truth);
+      const lmf::Pose2 e = lmf::between(ab->x_AB, truth);
+      pairwise_errors.emplace_back(e.x, e.y, lmf::wrap_angle(e.phi));
+    }
+    if (!ab || !bc || !ac) continue;
+    const lmf::eval::Closure c =
+        lmf::eval::closure_of({ab->x_AB, ab->covariance}, {bc->x_AB, bc->covariance}, {ac->x_AB, ac->covariance});
+    closures.push_back(c.residual);
+    closure_nees.push_back(c.nees);
+    if (o.per_scan) {
+      std::printf("%4zu  closure %+.4f %+.4f %+.5f  NEES %.1f  sigma %.4f %.4f %.5f\n", k, c.residual(0),
+                  c.residual(1), c.residual(2), c.nees, std::sqrt(c.covariance(0, 0)), std::sqrt(c.covariance(1, 1)),
+                  std::sqrt(c.covariance(2, 2)));
+    }
+  }
+  const auto axis_rms = [](const std::vector<Eigen::Vector3d>& v, int axis) {
+    std::vector<double> a;
+    for (const Eigen::Vector3d& e : v) a.push_back(e(axis));
+    return rms(a);
+  };
+  const auto row = [&](const char* name, const std::vector<Eigen::Vector3d>& e, const std::vector<double>& nees) {
+    std::printf("%-26s %6zu  %8.4f  %8.4f  %8.3f  %9.2f  %9.2f\n", name, e.size(), axis_rms(e, 0), axis_rms(e, 1),
+                axis_rms(e, 2) * 180.0 / std::numbers::pi, mean(nees), quantile(nees, 0.5));
+  };
+  std::printf("%s: pairwise matches (each scan against the one before, alone)\n", o.log_file.c_str());
+  std::printf("%-26s %6s  %8s  %8s  %8s  %9s  %9s\n", "", "n", "RMS x m", "RMS y m", "RMS deg", "NEES mean",
+              "NEES p50");
+  row("against the reference", pairwise_errors, pairwise.nees);
+  row("closure of three (no ref.)", closures, closure_nees);
+  std::printf("NEES is 3 when the covariances are right; the closure's, when the three matches' errors are also "
+              "independent.\n");
+  return 0;
+}
 
 int run(const Options& o) {
   lmf::LocalMapConfig config =
@@ -94,6 +155,7 @@ int run(const Options& o) {
   const lmf::io::CarmenLog log = lmf::io::read_carmen_log(o.log_file);
   const std::vector<lmf::StampedPose> reference =
       lmf::tools::read_reference_per_scan(o.reference_file, log.scans.size());
+  if (o.closure) return run_closure(o, log, reference, config);
   Errors odometry;
   Errors matched;
   Errors odometry_where_matched;
@@ -178,7 +240,12 @@ int main(int argc, char** argv) {
       "per-scan", po::bool_switch(&o.per_scan),
       "one line per increment: k, odometry and match errors (m, deg), match NEES, matched points, RMS (m),\n"
       "Gauss-Newton iterations, search score, prior d2, CPU time, and the signed match error\n"
-      "(x, y in m, phi in rad: the reference increment seen from the match)");
+      "(x, y in m, phi in rad: the reference increment seen from the match)")(
+      "closure", po::bool_switch(&o.closure),
+      "instead: match each scan against the one before and the one before that (alone, no history), and\n"
+      "report the pairwise matches' errors against the reference beside the closure of each three\n"
+      "(A→B then B→C against A→C), which needs no reference: RMS per axis and NEES; with --per-scan,\n"
+      "one line per closure: k, the closure (x, y in m, phi in rad), its NEES and standard deviations");
   if (const auto exit_code = lmf::tools::parse_command_line(argc, argv, options, "lmf-scan-match")) return *exit_code;
   return lmf::tools::run_reporting_errors("lmf-scan-match", [&] { return run(o); });
 }
