@@ -19,6 +19,9 @@
 namespace lmf {
 namespace {
 
+// (M + Mᵀ) / 2: information and covariance matrices stay exactly symmetric.
+Eigen::Matrix3d symmetrised(const Eigen::Matrix3d& M) { return 0.5 * (M + M.transpose()); }
+
 bool usable_range(const LaserScan& scan, std::size_t i, const ScanMatcherConfig& c) {
   const double r = scan.ranges_m[i];
   const double no_return = scan.max_range_m - c.no_return_margin_m;
@@ -306,6 +309,7 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
   Refinement out;
   Pose2 x = x0;
   Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d H_covariance = Eigen::Matrix3d::Zero();  // H with the calibrated laser term
   double gate = config.first_gate_m;
   constexpr int kIterationsPerGate = 5;
   int iterations_at_gate = 0;
@@ -357,8 +361,6 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
     out.mean_point_information = A_unweighted / matched;
     // Λ at most max_independent_points effective points, then widened by C_m:
     // Λ' = (I + Λ C_m)⁻¹ Λ, and the gradient of the widened term (I + Λ C_m)⁻¹ g.
-    // σ² is the larger of the configured and the residuals' own (Huber-weighted) variance.
-    const double residual_sigma2 = config.residual_sigma ? sum_we2 / (matched - 3) : 0.0;
     // Correlated residuals (AR(1) along the scan) count as N (1 − ρ) / (1 + ρ)
     // independent points; ρ is their lag-1 covariance over the variance the
     // point error is taken to have (σ², or their own when larger), so residuals
@@ -368,19 +370,28 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
                            ? std::clamp(sum_lag / lag_pairs / point_variance, 0.0, 0.99)
                            : 0.0;
     const double independent_points = std::min(config.max_independent_points, matched * (1.0 - rho) / (1.0 + rho));
-    const double laser_weight = independent_points / matched / std::max(sigma2, residual_sigma2);
+    const double laser_weight = independent_points / matched / sigma2;
     const Eigen::Matrix3d Lambda = laser_weight * A_laser;
     const Eigen::Matrix3d widen = (Eigen::Matrix3d::Identity() + Lambda * C_m).inverse();
-    Eigen::Matrix3d Lambda_widened = widen * Lambda;
-    Lambda_widened = (0.5 * (Lambda_widened + Lambda_widened.transpose())).eval();
+    const Eigen::Matrix3d Lambda_widened = symmetrised(widen * Lambda);
     out.match.laser_information = Lambda_widened;
+    // The covariance's laser term: σ² the larger of point_sigma_m² and the
+    // residuals' own (Huber-weighted) variance (residual_sigma).
+    const double residual_sigma2 = config.residual_sigma ? sum_we2 / (matched - 3) : 0.0;
+    const double calibration = sigma2 / std::max(sigma2, residual_sigma2);
+    const Eigen::Matrix3d Lambda_calibrated =
+        calibration < 1.0
+            ? symmetrised((Eigen::Matrix3d::Identity() + calibration * Lambda * C_m).inverse() * calibration * Lambda)
+            : Lambda_widened;
     const Pose2 r_pose = between(u_hat, x);
     const Eigen::Vector3d r(r_pose.x, r_pose.y, wrap_angle(r_pose.phi));
     const Eigen::Matrix3d J_r = prior_residual_jacobian(u_hat, x);
     const double d2 = r.dot(Q_inv * r);
     const double w_prior = d2 <= prior_k2 ? 1.0 : std::sqrt(prior_k2 / d2);
     out.match.prior_weight = w_prior;
-    H = Lambda_widened + w_prior * J_r.transpose() * Q_inv * J_r;
+    const Eigen::Matrix3d prior_information = w_prior * J_r.transpose() * Q_inv * J_r;
+    H = Lambda_widened + prior_information;
+    H_covariance = Lambda_calibrated + prior_information;
     const Eigen::Vector3d gradient = widen * (laser_weight * g_laser) + w_prior * J_r.transpose() * Q_inv * r;
     const Eigen::Vector3d delta = -H.ldlt().solve(gradient);
     if (!delta.allFinite()) return std::nullopt;
@@ -400,12 +411,11 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
   const Pose2 r_pose = between(u_hat, x);
   out.match.prior_residual = Eigen::Vector3d(r_pose.x, r_pose.y, wrap_angle(r_pose.phi));
   out.match.prior_distance2 = out.match.prior_residual.dot(Q_inv * out.match.prior_residual);
-  const Eigen::LLT<Eigen::Matrix3d> H_llt(H);
+  const Eigen::LLT<Eigen::Matrix3d> H_llt(H_covariance);
   if (H_llt.info() != Eigen::Success) return std::nullopt;
   out.match.x_AB = x;
   out.match.search_pose = x0;
-  out.match.covariance = H_llt.solve(Eigen::Matrix3d::Identity());
-  out.match.covariance = (0.5 * (out.match.covariance + out.match.covariance.transpose())).eval();
+  out.match.covariance = symmetrised(H_llt.solve(Eigen::Matrix3d::Identity()));
   out.match.static_x_AB = out.match.x_AB;
   out.match.static_laser_information = out.match.laser_information;
   return out;

@@ -127,9 +127,15 @@ struct ScanMatcherConfig {
   // Std of one point's distance to its line (m), and the Huber threshold in units of it.
   double point_sigma_m = 0.03;
   double huber_k = 2.0;
-  // When set, σ² = max(point_sigma_m², Σ_i w_i e_i² / (N − 3)): the laser
-  // term is also calibrated on the match's own residuals (off by default;
-  // docs/results.md, "Match covariance from the residuals").
+  // When set, the match's covariance (what the local map's filter receives)
+  // takes the laser term at σ² = max(point_sigma_m², Σ_i w_i e_i² / (N − 3)),
+  // the match's own Huber-weighted residual variance where it is larger: a
+  // scan whose walls fit worse than point_sigma_m (a noisier laser, a sparse
+  // one at long range, clutter) reports a wider covariance. The estimate
+  // itself, and the laser information the odometry model learns with, keep
+  // point_sigma_m. Off by default: the front end's consistency improves on
+  // every log, the simulator's fused maps get worse (docs/results.md, "The
+  // match's covariance from its residuals").
   bool residual_sigma = false;
   // When set, the matched points count as N (1 − ρ) / (1 + ρ) independent
   // ones (an AR(1) sequence along the scan), ρ ∈ [0, 0.99] the lag-1
@@ -221,9 +227,12 @@ ScanPoints scan_points_by_kind(const LaserScan& scan, const ScanMatcherConfig& c
 
 struct ScanMatch {
   Pose2 x_AB;                    // the refined increment
-  Eigen::Matrix3d covariance;    // of its perturbation p (x_true = x_AB ⊕ p): (Λ' + J_rᵀ Q⁻¹ J_r)⁻¹
-  // The laser's own information about p at the optimum, Λ' (widened by the
-  // model noise; singular where the scene does not constrain a direction).
+  // Of its perturbation p (x_true = x_AB ⊕ p): (Λ'_r + J_rᵀ Q⁻¹ J_r)⁻¹, Λ'_r the
+  // laser term at the residuals' σ when larger than point_sigma_m (residual_sigma).
+  Eigen::Matrix3d covariance;
+  // The laser's own information about p at the optimum at point_sigma_m, Λ'
+  // (widened by the model noise; singular where the scene does not constrain
+  // a direction): the weight of the laser in x_AB.
   // With the prior residual below, an odometry error model can compare the
   // odometry with the laser in the directions the laser constrains.
   Eigen::Matrix3d laser_information;
