@@ -11,6 +11,7 @@
 #include <iostream>
 #include <numbers>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -111,7 +112,7 @@ int run_closure(const Options& o, const lmf::io::CarmenLog& log, const std::vect
     const std::optional<lmf::ScanMatch> bc = match(k - 1, k);
     const std::optional<lmf::ScanMatch> ac = match(k - 2, k);
     previous = bc;
-    if (ab) {
+    if (ab && !reference.empty()) {
       const lmf::Pose2 truth = lmf::between(reference[k - 2].pose, reference[k - 1].pose);
       pairwise.add(ab->x_AB, ab->covariance, truth);
       const lmf::Pose2 e = lmf::between(ab->x_AB, truth);
@@ -140,7 +141,7 @@ int run_closure(const Options& o, const lmf::io::CarmenLog& log, const std::vect
   std::printf("%s: pairwise matches (each scan against the one before, alone)\n", o.log_file.c_str());
   std::printf("%-26s %6s  %8s  %8s  %8s  %9s  %9s\n", "", "n", "RMS x m", "RMS y m", "RMS deg", "NEES mean",
               "NEES p50");
-  row("against the reference", pairwise_errors, pairwise.nees);
+  if (!reference.empty()) row("against the reference", pairwise_errors, pairwise.nees);
   row("closure of three (no ref.)", closures, closure_nees);
   std::printf("NEES is 3 when the covariances are right; the closure's, when the three matches' errors are also "
               "independent.\n");
@@ -148,13 +149,17 @@ int run_closure(const Options& o, const lmf::io::CarmenLog& log, const std::vect
 }
 
 int run(const Options& o) {
+  if (o.reference_file.empty() && !o.closure) {
+    throw std::invalid_argument("--gt is required (only --closure runs without a reference)");
+  }
   lmf::LocalMapConfig config =
       o.config_file.empty() ? lmf::LocalMapConfig{} : lmf::load_local_map_config(o.config_file);
   config.scan_matching.enabled = true;
   const lmf::ScanMatcherConfig& matching = config.scan_matching;
   const lmf::io::CarmenLog log = lmf::io::read_carmen_log(o.log_file);
   const std::vector<lmf::StampedPose> reference =
-      lmf::tools::read_reference_per_scan(o.reference_file, log.scans.size());
+      o.reference_file.empty() ? std::vector<lmf::StampedPose>{}
+                               : lmf::tools::read_reference_per_scan(o.reference_file, log.scans.size());
   if (o.closure) return run_closure(o, log, reference, config);
   Errors odometry;
   Errors matched;
@@ -232,7 +237,8 @@ int main(int argc, char** argv) {
       "covariance is right) and the share inside its 95 % bound, and the time per match.\nOptions");
   options.add_options()("help,h", "print this help")(
       "log", po::value(&o.log_file)->required(), "CARMEN log (plain or .gz)")(
-      "gt", po::value(&o.reference_file)->required(), "reference trajectory, one `index t x y theta` line per scan")(
+      "gt", po::value(&o.reference_file),
+      "reference trajectory, one `index t x y theta` line per scan (required but with --closure)")(
       "q-scale", po::value(&o.q_scale)->default_value(1.0),
       "multiply the odometry noise model's covariance Q by this (an experiment: a wider prior)")(
       "config", po::value(&o.config_file),
