@@ -106,18 +106,22 @@ int run_closure(const Options& o, const lmf::io::CarmenLog& log, const std::vect
   std::vector<Eigen::Vector3d> pairwise_errors;
   std::vector<Eigen::Vector3d> closures;
   std::vector<double> closure_nees;
+  // Each pairwise match (k − 1, k) against the reference, once.
+  const auto score = [&](const std::optional<lmf::ScanMatch>& m, std::size_t k) {
+    if (!m || reference.empty()) return;
+    const lmf::Pose2 truth = lmf::between(reference[k - 1].pose, reference[k].pose);
+    pairwise.add(m->x_AB, m->covariance, truth);
+    const lmf::Pose2 e = lmf::between(m->x_AB, truth);
+    pairwise_errors.emplace_back(e.x, e.y, lmf::wrap_angle(e.phi));
+  };
   std::optional<lmf::ScanMatch> previous = log.scans.size() > 1 ? match(0, 1) : std::nullopt;
+  score(previous, 1);
   for (std::size_t k = 2; k < log.scans.size(); ++k) {
     const std::optional<lmf::ScanMatch> ab = previous;
     const std::optional<lmf::ScanMatch> bc = match(k - 1, k);
     const std::optional<lmf::ScanMatch> ac = match(k - 2, k);
     previous = bc;
-    if (ab && !reference.empty()) {
-      const lmf::Pose2 truth = lmf::between(reference[k - 2].pose, reference[k - 1].pose);
-      pairwise.add(ab->x_AB, ab->covariance, truth);
-      const lmf::Pose2 e = lmf::between(ab->x_AB, truth);
-      pairwise_errors.emplace_back(e.x, e.y, lmf::wrap_angle(e.phi));
-    }
+    score(bc, k);
     if (!ab || !bc || !ac) continue;
     const lmf::eval::Closure c =
         lmf::eval::closure_of({ab->x_AB, ab->covariance}, {bc->x_AB, bc->covariance}, {ac->x_AB, ac->covariance});
@@ -238,7 +242,7 @@ int main(int argc, char** argv) {
   options.add_options()("help,h", "print this help")(
       "log", po::value(&o.log_file)->required(), "CARMEN log (plain or .gz)")(
       "gt", po::value(&o.reference_file),
-      "reference trajectory, one `index t x y theta` line per scan (required but with --closure)")(
+      "reference trajectory, one `index t x y theta` line per scan (required unless --closure)")(
       "q-scale", po::value(&o.q_scale)->default_value(1.0),
       "multiply the odometry noise model's covariance Q by this (an experiment: a wider prior)")(
       "config", po::value(&o.config_file),

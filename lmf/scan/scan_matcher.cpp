@@ -377,7 +377,7 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
     out.match.laser_information = Lambda_widened;
     // The covariance's laser term: σ² the larger of point_sigma_m² and the
     // residuals' own (Huber-weighted) variance (residual_sigma).
-    const double residual_sigma2 = config.residual_sigma ? sum_we2 / (matched - 3) : 0.0;
+    const double residual_sigma2 = config.residual_sigma && matched > 3 ? sum_we2 / (matched - 3) : 0.0;
     const double calibration = sigma2 / std::max(sigma2, residual_sigma2);
     const Eigen::Matrix3d Lambda_calibrated =
         calibration < 1.0

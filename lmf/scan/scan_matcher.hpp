@@ -133,9 +133,8 @@ struct ScanMatcherConfig {
   // scan whose walls fit worse than point_sigma_m (a noisier laser, a sparse
   // one at long range, clutter) reports a wider covariance. The estimate
   // itself, and the laser information the odometry model learns with, keep
-  // point_sigma_m. Off by default: the front end's consistency improves on
-  // every log, the simulator's fused maps get worse (docs/results.md, "The
-  // match's covariance from its residuals").
+  // point_sigma_m. Off by default (docs/results.md, "The match's covariance
+  // from its residuals").
   bool residual_sigma = false;
   // When set, the matched points count as N (1 − ρ) / (1 + ρ) independent
   // ones (an AR(1) sequence along the scan), ρ ∈ [0, 0.99] the lag-1

@@ -8,7 +8,7 @@
 namespace lmf::eval {
 namespace {
 
-// B turned by 69° and 2 m from C: the heading's uncertainty moves the
+// C turned by 69° and 2 m from B: the heading's uncertainty moves the
 // positions, and the frames' rotation mixes x and y.
 const Pose2 kAB(1.0, 0.2, 0.3);
 const Pose2 kBC(2.0, -0.5, 1.2);
@@ -34,7 +34,6 @@ TEST(MatchClosure, AnErrorOfTheDirectPoseIsTheResidual) {
   EXPECT_NEAR(c.residual(0), error.x, 1e-12);
   EXPECT_NEAR(c.residual(1), error.y, 1e-12);
   EXPECT_NEAR(c.residual(2), error.phi, 1e-12);
-  EXPECT_NEAR(c.nees, c.residual.dot(c.covariance.ldlt().solve(c.residual)), 1e-9);
 }
 
 // The propagated covariance is that of the residuals of perturbed poses
