@@ -1,20 +1,21 @@
 #include "lmf/eval/match_closure.hpp"
 
-#include <Eigen/Cholesky>
 #include <array>
+
+#include <Eigen/Cholesky>
 
 namespace lmf::eval {
 namespace {
 
-Eigen::Vector3d residual(const std::array<Pose2, 3> &x) {
+Eigen::Vector3d residual(const std::array<Pose2, 3>& x) {
   const Pose2 c = between(compose(x[0], x[1]), x[2]);
   return {c.x, c.y, wrap_angle(c.phi)};
 }
 
 }  // namespace
 
-Closure closure_of(const RelativePose &ab, const RelativePose &bc, const RelativePose &ac) {
-  const std::array<const RelativePose *, 3> poses = {&ab, &bc, &ac};
+Closure closure_of(const RelativePose& ab, const RelativePose& bc, const RelativePose& ac) {
+  const std::array<const RelativePose*, 3> poses = {&ab, &bc, &ac};
   const std::array<Pose2, 3> x = {ab.x, bc.x, ac.x};
   Closure out{residual(x), Eigen::Matrix3d::Zero(), 0.0};
   constexpr double kStep = 1e-6;

@@ -15,8 +15,8 @@
 
 namespace lmf::eval {
 
-// A relative pose and the covariance of its right perturbation p, x_true = x ⊕
-// p (as ScanMatch::covariance).
+// A relative pose and the covariance of its right perturbation p,
+// x_true = x ⊕ p (as ScanMatch::covariance).
 struct RelativePose {
   Pose2 x;
   Eigen::Matrix3d covariance;
@@ -29,6 +29,6 @@ struct Closure {
 };
 
 // J_i by central differences in the right perturbation of each pose.
-Closure closure_of(const RelativePose &ab, const RelativePose &bc, const RelativePose &ac);
+Closure closure_of(const RelativePose& ab, const RelativePose& bc, const RelativePose& ac);
 
 }  // namespace lmf::eval

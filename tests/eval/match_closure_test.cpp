@@ -1,9 +1,9 @@
 #include "lmf/eval/match_closure.hpp"
 
-#include <gtest/gtest.h>
+#include <random>
 
 #include <Eigen/Cholesky>
-#include <random>
+#include <gtest/gtest.h>
 
 namespace lmf::eval {
 namespace {
@@ -37,8 +37,7 @@ TEST(MatchClosure, AnErrorOfTheDirectPoseIsTheResidual) {
 }
 
 // The propagated covariance is that of the residuals of perturbed poses
-// (Monte Carlo, 20000 draws: the sample covariance is within ~2 % of the
-// truth).
+// (Monte Carlo, 20000 draws: the sample covariance is within ~2 % of the truth).
 TEST(MatchClosure, CovarianceMatchesSampledResiduals) {
   const Eigen::Matrix3d P_ab = covariance(0.03, 0.01, 0.05, 0.5);
   const Eigen::Matrix3d P_bc = covariance(0.01, 0.04, 0.02, -0.3);
@@ -48,7 +47,7 @@ TEST(MatchClosure, CovarianceMatchesSampledResiduals) {
 
   std::mt19937 rng(11);
   std::normal_distribution<double> normal;
-  const auto draw = [&](const Pose2 &x, const Eigen::Matrix3d &P) {
+  const auto draw = [&](const Pose2& x, const Eigen::Matrix3d& P) {
     const Eigen::Matrix3d L = P.llt().matrixL();
     const Eigen::Vector3d p = L * Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
     return compose(x, Pose2(p(0), p(1), p(2)));
