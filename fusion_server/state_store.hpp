@@ -86,8 +86,9 @@ namespace lmf::server {
 // version 6 (frame registration), fusion reports carry its outcome. 7: the
 // authentication high-water marks (per signer, the highest seq of an input
 // applied) follow the server state. 8: sighting records in the GlobalMap
-// archive's layout (one serializer for fusion::RobotSighting).
-inline constexpr std::uint32_t kStateVersion = 8;
+// archive's layout (one serializer for fusion::RobotSighting). 9: fusion reports
+// carry the robot's frame as predicted and as fused.
+inline constexpr std::uint32_t kStateVersion = 9;
 
 // The state directory cannot be used (in use, unreadable, every snapshot corrupt, I/O error).
 class StateError : public std::runtime_error {

@@ -116,6 +116,7 @@ void advance_robot_frame(FusionContext& f, RobotArrivals& arrivals, const Enviro
   GlobalState& state = f.state;
   const std::int64_t seq = f.snapshot.seq;
   f.x_WL_fused = state.root_location(f.L);
+  f.report.x_WL_fused = f.x_WL_fused;
   f.cov_L_fused = state.block(f.L, f.L);
   if (f.anchored()) {
     f.report.x_WL_next = state.root_location(arrivals.anchored_map_fused(f.robot_id, seq));

@@ -37,6 +37,7 @@ void augment(FusionContext& f) {
   // P⁻ = [[P, 0], [0, P_Mr]]; robot and local segments are children of L_r.
   GlobalState& state = f.state;
   const LocalMapSnapshot& s = f.snapshot;
+  f.report.x_WL_predicted = state.root_location(f.L);
   const Eigen::MatrixXd P_Mr = f.config.local_map_covariance_scale * s.covariance;
   const std::size_t k = s.segments.size();
   const auto k_rows = static_cast<Eigen::Index>(2 * k);

@@ -293,7 +293,9 @@ struct FusionReport {
   int footprint_segments_removed = 0;  // segments inside a robot footprint (GlobalMapConfig::footprint_radius_m)
   int crossing_segments_removed = 0;   // the less certain of two crossing segments (GlobalMapConfig::crossing_margin_m)
   std::optional<EntityId> new_submap;
-  Pose2 x_WL_next;  // the robot's next local frame
+  Pose2 x_WL_predicted;  // L_r as the map predicted it, before the registration and the update
+  Pose2 x_WL_fused;      // L_r after the update
+  Pose2 x_WL_next;       // the robot's next local frame
 
   // Covariance health after the fusion (see HealthCheck): the smallest LDLT
   // pivot of the checked block and, when that pivot is below -kPsdTolerance

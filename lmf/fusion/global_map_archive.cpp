@@ -425,6 +425,8 @@ void write_fusion_report(ArchiveWriter& w, const FusionReport& f) {
   }
   w.boolean(f.new_submap.has_value());
   w.i64(f.new_submap.value_or(0));
+  w.pose(f.x_WL_predicted);
+  w.pose(f.x_WL_fused);
   w.pose(f.x_WL_next);
   w.u8(static_cast<std::uint8_t>(f.health_scope));
   write_optional(w, f.min_ldlt_pivot);
@@ -470,6 +472,8 @@ FusionReport read_fusion_report(ArchiveReader& r) {
   const bool has_submap = r.boolean();
   const std::int64_t submap = r.i64();
   if (has_submap) f.new_submap = submap;
+  f.x_WL_predicted = r.pose();
+  f.x_WL_fused = r.pose();
   f.x_WL_next = r.pose();
   const std::uint8_t scope = r.u8();
   if (scope > static_cast<std::uint8_t>(HealthCheck::kFullEigen)) r.fail("corrupt: health scope " + std::to_string(scope));

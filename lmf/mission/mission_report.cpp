@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <numbers>
 #include <sstream>
 #include <stdexcept>
 
@@ -263,6 +264,16 @@ void write_mission_outputs(const std::filesystem::path& out, const OfflineMissio
   json fusions = json::array();
   for (const auto& f : result.fusions) fusions.push_back(fusion_report_json(f));
   report["fusions"] = fusions;
+  json frame_checks = json::array();
+  for (const FusionFrameCheck& c : result.fusion_frame_checks) {
+    frame_checks.push_back({{"robot_id", c.robot_id},
+                            {"seq", c.seq},
+                            {"before_m", c.before_m},
+                            {"before_rad", c.before_rad},
+                            {"after_m", c.after_m},
+                            {"after_rad", c.after_rad}});
+  }
+  report["fusion_frame_checks"] = frame_checks;
   json sightings = json::array();
   for (const auto& s : result.sightings) {
     sightings.push_back(sighting_json(s.input.utime, s.input.observer, s.input.observed, sighting_status_name(s.status)));
@@ -292,6 +303,40 @@ void write_mission_outputs(const std::filesystem::path& out, const OfflineMissio
   std::ofstream file(out / "report.json");
   file << report.dump(1) << '\n';
   if (!file) throw std::runtime_error((out / "report.json").string() + ": cannot write");
+}
+
+std::string describe_fusion_frame_checks(const std::vector<FusionFrameCheck>& checks) {
+  // A fusion that changes the frame's error by less than this moved it within
+  // the reference's own accuracy (a reporting threshold, not a parameter).
+  constexpr double kNoticeable_m = 0.1;
+  constexpr double kNoticeable_rad = std::numbers::pi / 180.0;
+  int closer = 0;
+  int farther = 0;
+  const FusionFrameCheck* worst = nullptr;
+  for (const FusionFrameCheck& c : checks) {
+    const double gain_m = c.before_m - c.after_m;
+    const double gain_rad = c.before_rad - c.after_rad;
+    if (gain_m <= -kNoticeable_m || gain_rad <= -kNoticeable_rad) {
+      ++farther;
+      if (!worst || c.after_m - c.before_m > worst->after_m - worst->before_m) worst = &c;
+    } else if (gain_m >= kNoticeable_m || gain_rad >= kNoticeable_rad) {
+      ++closer;
+    }
+  }
+  char line[320];
+  std::snprintf(line, sizeof line,
+                "fusions vs reference (the robot's frame before and after each of %zu): %d moved it 0.1 m or 1 deg "
+                "closer, %d farther",
+                checks.size(), closer, farther);
+  std::string out = line;
+  if (worst) {
+    std::snprintf(line, sizeof line, "; the farthest: robot %d map %lld, %.2f m %.1f deg -> %.2f m %.1f deg",
+                  worst->robot_id, static_cast<long long>(worst->seq), worst->before_m,
+                  worst->before_rad * 180.0 / std::numbers::pi, worst->after_m,
+                  worst->after_rad * 180.0 / std::numbers::pi);
+    out += line;
+  }
+  return out;
 }
 
 std::string summarize(const OfflineMission& mission, const MissionResult& result,
@@ -371,6 +416,7 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
       << " degenerate disagreements left alone, " << outcomes[RegistrationOutcome::kAgrees] << " agreed, "
       << outcomes[RegistrationOutcome::kNothingNearby] << " with nothing nearby\n";
   }
+  if (!result.fusion_frame_checks.empty()) s << describe_fusion_frame_checks(result.fusion_frame_checks) << "\n";
   const fusion::MapCounts counts = mission.global_map().counts();
   std::snprintf(line, sizeof line,
                 "map: %d segments, %d submaps, %d graph edges; %zu fusions (median %.1f ms, max %.1f ms); "

@@ -70,6 +70,10 @@ void write_mission_outputs(const std::filesystem::path& out, const OfflineMissio
                            const MissionResult& result, const std::optional<MissionScore>& score,
                            const fusion::MapSvgOptions& svg = {});
 
+// One line: how many fusions moved their robot's frame noticeably (0.1 m or
+// 1°) closer to the reference or farther from it, and the farthest.
+std::string describe_fusion_frame_checks(const std::vector<FusionFrameCheck>& checks);
+
 // The one-screen summary.
 std::string summarize(const OfflineMission& mission, const MissionResult& result,
                       const std::optional<MissionScore>& score);

@@ -142,6 +142,10 @@ void OfflineMission::ship(Agent& agent, RobotResult& result) {
   ++result.local_maps_shipped;
   check_consistency(snapshot, result);
   trajectories_.add(snapshot);
+  frame_utimes_[{snapshot.robot_id, snapshot.seq}] = snapshot.first_utime;
+  if (snapshot.robot_id == inputs_.robots.front().robot_id && snapshot.seq == 0) {
+    world_in_reference_ = reference_pose(snapshot.robot_id, snapshot.first_utime);  // its L_r is W (run())
+  }
   record(global_map_.fuse(snapshot));  // lockstep: fused before the next scan
 }
 
@@ -178,12 +182,27 @@ void OfflineMission::check_consistency(const LocalMapSnapshot& snapshot, RobotRe
       {snapshot.seq, std::hypot(e.x, e.y), std::abs(wrap_angle(e.phi)), *nees});
 }
 
+void OfflineMission::check_fusion_frame(const fusion::FusionReport& report) {
+  if (!world_in_reference_) return;
+  const auto utime = frame_utimes_.find({report.robot_id, report.seq});
+  if (utime == frame_utimes_.end()) return;
+  const std::optional<Pose2> reference = reference_pose(report.robot_id, utime->second);
+  if (!reference) return;
+  const Pose2 x_WL_true = between(*world_in_reference_, *reference);
+  const Pose2 before = between(x_WL_true, report.x_WL_predicted);
+  const Pose2 after = between(x_WL_true, report.x_WL_fused);
+  result_.fusion_frame_checks.push_back({report.robot_id, report.seq, std::hypot(before.x, before.y),
+                                         std::abs(wrap_angle(before.phi)), std::hypot(after.x, after.y),
+                                         std::abs(wrap_angle(after.phi))});
+}
+
 void OfflineMission::record(const std::vector<fusion::FusionReport>& reports) {
   for (const fusion::FusionReport& report : reports) {
     for (RobotResult& r : result_.robots) {
       if (r.robot_id == report.robot_id) ++r.local_maps_fused;
     }
     if (!covariance_ok(report)) result_.global_covariance_always_ok = false;
+    check_fusion_frame(report);
     result_.fusions.push_back(report);
   }
 }

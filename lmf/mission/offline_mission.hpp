@@ -11,6 +11,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lmf/fusion/global_map.hpp"
@@ -47,6 +48,20 @@ struct LocalMapConsistency {
   double nees = 0.0;       // with P_RR (3 dof; mean 3 when consistent)
 };
 
+// One fusion's effect on the robot's frame L_r against the reference, when the
+// inputs have one: the frame's error as the map predicted it (before the
+// registration and the update) and as fused, in W aligned to the reference by
+// the first robot's first frame (W). Errors include the drift
+// accumulated before the fusion; their difference is what the fusion did.
+struct FusionFrameCheck {
+  int robot_id = 0;
+  std::int64_t seq = 0;
+  double before_m = 0.0;
+  double before_rad = 0.0;
+  double after_m = 0.0;
+  double after_rad = 0.0;
+};
+
 struct RobotResult {
   int robot_id = 0;
   std::string name;
@@ -76,6 +91,7 @@ struct SightingEvent {
 struct MissionResult {
   std::vector<RobotResult> robots;
   std::vector<fusion::FusionReport> fusions;  // in fusion order
+  std::vector<FusionFrameCheck> fusion_frame_checks;  // fusions with a reference, in fusion order
   std::vector<SightingEvent> sightings;
   TimingStats fusion_timing;
   bool global_covariance_always_ok = true;    // every fusion's health check passed
@@ -105,6 +121,7 @@ class OfflineMission {
   void process_scan(Agent& agent, RobotResult& result);
   void ship(Agent& agent, RobotResult& result);
   void check_consistency(const LocalMapSnapshot& snapshot, RobotResult& result) const;
+  void check_fusion_frame(const fusion::FusionReport& report);
   // The matched motion of a scan against the reference motion from the scan before.
   void check_match(const ScanReport& report, std::int64_t previous_utime, std::int64_t utime,
                    RobotResult& result) const;
@@ -119,6 +136,11 @@ class OfflineMission {
   std::vector<Agent> agents_;
   TrajectoryBook trajectories_;
   MissionResult result_;
+  // For the fusion frame checks: each shipped map's first scan time (its frame
+  // L_r is the robot's pose then), and W in the reference's frame (the first
+  // robot's first frame, which run() makes W).
+  std::map<std::pair<int, std::int64_t>, std::int64_t> frame_utimes_;
+  std::optional<Pose2> world_in_reference_;
   bool ran_ = false;
 };
 

@@ -63,6 +63,39 @@ TEST(OfflineMission, SimulatedTwoRobotMissionJoinsBySightingAndMaps) {
   EXPECT_GT(mission.global_map().counts().segments, 20);
 }
 
+// Every fusion of the simulator's mission (which has a reference for every
+// scan) is checked against it; the first robot's first frame defines W, so its
+// predicted error is zero, and no frame is far from the truth on a mission whose
+// ATE is centimetres.
+TEST(OfflineMission, FusionFrameChecksFollowTheReference) {
+  const MissionInputs inputs = load_sim_folder(simulated_folder(), SightingNoise{});
+  OfflineMission mission(load_mission_config(std::string(LMF_CONFIG_DIR) + "/sim.json"), inputs);
+  const MissionResult result = mission.run();
+  ASSERT_EQ(result.fusion_frame_checks.size(), result.fusions.size());
+  const FusionFrameCheck& first = result.fusion_frame_checks.front();
+  EXPECT_EQ(first.robot_id, result.fusions.front().robot_id);
+  EXPECT_LT(first.before_m, 1e-6);
+  EXPECT_LT(first.before_rad, 1e-6);
+  for (const FusionFrameCheck& c : result.fusion_frame_checks) {
+    SCOPED_TRACE("robot " + std::to_string(c.robot_id) + " map " + std::to_string(c.seq));
+    EXPECT_LT(c.before_m, 0.3);
+    EXPECT_LT(c.after_m, 0.3);
+    EXPECT_LT(c.after_rad, 0.05);
+  }
+}
+
+TEST(OfflineMission, FusionFrameChecksCountNoticeableMoves) {
+  const std::vector<FusionFrameCheck> checks = {
+      {0, 1, 0.30, 0.00, 0.10, 0.00},  // 0.2 m closer
+      {0, 2, 0.10, 0.00, 0.15, 0.00},  // 5 cm farther: not noticeable
+      {1, 3, 0.28, 0.01, 1.18, 0.01},  // 0.9 m farther: the farthest
+      {1, 4, 0.20, 0.00, 0.20, 0.03},  // 1.7 deg farther
+  };
+  const std::string line = describe_fusion_frame_checks(checks);
+  EXPECT_NE(line.find("each of 4): 1 moved it 0.1 m or 1 deg closer, 2 farther"), std::string::npos) << line;
+  EXPECT_NE(line.find("robot 1 map 3, 0.28 m"), std::string::npos) << line;
+}
+
 // Robot footprints on the simulator (its robots see each other as discs): the
 // segments they remove were no walls. With and without them, the same segments
 // match a wall; those that do not are fewer by exactly the number removed.
