@@ -87,8 +87,9 @@ namespace lmf::server {
 // authentication high-water marks (per signer, the highest seq of an input
 // applied) follow the server state. 8: sighting records in the GlobalMap
 // archive's layout (one serializer for fusion::RobotSighting). 9: fusion reports
-// carry the robot's frame as predicted and as fused.
-inline constexpr std::uint32_t kStateVersion = 9;
+// carry the robot's frame as predicted and as fused. 10: archive version 7
+// (registration.confirm_pairings), fusion reports count the unconfirmed pairs.
+inline constexpr std::uint32_t kStateVersion = 10;
 
 // The state directory cannot be used (in use, unreadable, every snapshot corrupt, I/O error).
 class StateError : public std::runtime_error {

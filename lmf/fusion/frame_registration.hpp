@@ -52,6 +52,14 @@ struct FrameRegistrationConfig {
   // they drifted with the frame and cannot tell it is off (they would make
   // the predicted frame score as well as the right one).
   int own_recent_maps = 3;
+  // Pairings with the established map (all but those own recent submaps) are
+  // a loop closure or a join of two robots' maps, the corrections the map can
+  // least afford to get wrong. When the registration found nothing nearby (no
+  // pose of the window explains min_score of the local map) although the
+  // window held the frame's χ² region relative to a submap, the gate's pairs
+  // with that submap are a few segments that happen to line up: refused
+  // (FusionReport::unconfirmed_pairs). Beyond the window the gate decides.
+  bool confirm_pairings = true;
 
   // Throws std::invalid_argument naming the first bad field.
   void validate() const;
@@ -70,6 +78,7 @@ void visit_fields(Config& c, F&& f) {
   f("ambiguity_ratio", c.ambiguity_ratio);
   f("min_constraint", c.min_constraint);
   f("own_recent_maps", c.own_recent_maps);
+  f("confirm_pairings", c.confirm_pairings);
 }
 
 // A segment: its frame (midpoint, x along it) and length.

@@ -71,6 +71,11 @@ struct FusionContext {
   spmap::Chi2Table chi2;                  // at GlobalMapConfig::alpha
   FusionReport report;
 
+  // The robot's own recent submaps, which the registration leaves out
+  // (relocate_frame; FrameRegistrationConfig::own_recent_maps): filled when
+  // the registration runs.
+  std::set<EntityId> own_recent_submaps;
+
   // Step 1: the robot R and the local segments S_j in the state (children of L).
   EntityId R = 0;
   std::vector<EntityId> local;
@@ -114,7 +119,10 @@ void augment(FusionContext& f);
 void relocate_frame(FusionContext& f, const EnvironmentGraph& graph);
 
 // Step 2: the geometric gate between every global segment (outside L_r) and
-// every local segment; fills `gated` and the report's funnel counts.
+// every local segment; fills `gated` and the report's funnel counts. When the
+// registration found nothing nearby where its window held the frame
+// (FrameRegistrationConfig::confirm_pairings), pairs with submaps other than
+// the robot's own recent ones are counted as unconfirmed instead.
 void gate(FusionContext& f);
 
 // Step 2: implicit measurements of the gated pairs (eq. 12), the individual chi2

@@ -6,6 +6,8 @@
 #include <numeric>
 #include <unordered_map>
 
+#include <Eigen/Eigenvalues>
+
 #include "lmf/fusion/fusion_equations.hpp"
 #include "lmf/fusion/fusion_steps.hpp"
 #include "lmf/spmap/careful_inverse.hpp"
@@ -141,6 +143,18 @@ bool passes_gate(const GlobalMapConfig& config, const GateSegment& g, const Gate
   return !(gap > config.gate_gap_m + gs * along_sigma);
 }
 
+// Whether the registration's window holds the χ² region (3 dof, `chi2`) of
+// the frame relative to a submap, covariance Sigma: along every axis
+// sqrt(chi2 Σ_ii) at most the window, the position's by its largest
+// eigenvalue. Beyond it the registration could not have seen that submap's
+// walls where the frame may be, and its finding nothing says nothing.
+bool window_holds(const FrameRegistrationConfig& registration, const Eigen::Matrix3d& Sigma, double chi2) {
+  const double position_variance = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(
+                                       Sigma.topLeftCorner<2, 2>(), Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
+  return chi2 * position_variance <= registration.window_m * registration.window_m &&
+         chi2 * Sigma(2, 2) <= registration.window_rad * registration.window_rad;
+}
+
 }  // namespace
 
 void gate(FusionContext& f) {
@@ -160,10 +174,18 @@ void gate(FusionContext& f) {
   for (const EntityId id : f.local) locals.push_back(gate_segment(state, state.entity(id)));
   const Pose2 x_WL = state.root_location(f.L);
   std::int64_t globals_count = 0;
+  // Pairings with the established map (every submap but the robot's own
+  // recent ones, which drifted with its frame) close a loop or join two
+  // robots' maps: where the registration searched and found nothing, they are
+  // not made (FrameRegistrationConfig::confirm_pairings).
+  const bool found_nothing = f.config.registration.confirm_pairings &&
+                             f.report.registration == RegistrationOutcome::kNothingNearby;
   for (const EntityId F : submap_order) {
     const std::vector<GateSegment>& globals = by_submap.at(F);
     globals_count += static_cast<std::int64_t>(globals.size());
     const RelativeFrame rel = relative_frame(state, F, f.L, x_WL);
+    const bool confirmed = !found_nothing || f.own_recent_submaps.contains(F) ||
+                           !window_holds(f.config.registration, rel.Sigma, f.chi2(3));
     const double sigma_frame_angle = std::sqrt(std::max(0.0, rel.Sigma(2, 2)));
     const double cf = std::cos(rel.x_FL.phi);
     const double sf = std::sin(rel.x_FL.phi);
@@ -176,12 +198,18 @@ void gate(FusionContext& f) {
           0.0, 1.0, cf * l.location.x - sf * l.location.y;
       const Eigen::Matrix2d cov_p = G * rel.Sigma * G.transpose();
       for (const GateSegment& g : globals) {
-        if (passes_gate(f.config, g, l, x_F_Sj, cov_p, sigma_frame_angle)) f.gated.emplace_back(g.id, j);
+        if (!passes_gate(f.config, g, l, x_F_Sj, cov_p, sigma_frame_angle)) continue;
+        if (confirmed) {
+          f.gated.emplace_back(g.id, j);
+        } else {
+          ++f.report.unconfirmed_pairs;
+        }
       }
     }
   }
   f.report.pairs_considered = globals_count * static_cast<std::int64_t>(f.local.size());
-  f.report.gate_rejected = f.report.pairs_considered - static_cast<std::int64_t>(f.gated.size());
+  f.report.gate_rejected =
+      f.report.pairs_considered - static_cast<std::int64_t>(f.gated.size()) - f.report.unconfirmed_pairs;
 }
 
 void test_individual_compatibility(FusionContext& f) {

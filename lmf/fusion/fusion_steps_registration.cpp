@@ -1,6 +1,6 @@
 // The frame registration step of the fusion (fusion_steps.hpp, relocate_frame).
 #include <cmath>
-#include <unordered_set>
+#include <set>
 
 #include <Eigen/Cholesky>
 
@@ -23,7 +23,7 @@ void relocate_frame(FusionContext& f, const EnvironmentGraph& graph) {
   const Pose2 x_WL = state.root_location(f.L);
   const double reach = extent + config.window_m;
   // The robot's own recent submaps moved with its frame (FrameRegistrationConfig::own_recent_maps).
-  std::unordered_set<EntityId> recent_own;
+  std::set<EntityId>& recent_own = f.own_recent_submaps;
   for (const SubmapRecord& submap : graph.submaps()) {
     if (submap.robot_id == f.robot_id && submap.seq >= s.seq - config.own_recent_maps) recent_own.insert(submap.frame);
   }

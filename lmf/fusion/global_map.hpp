@@ -271,6 +271,9 @@ struct FusionReport {
   // Pairing funnel: pairs considered = global segments x local segments.
   std::int64_t pairs_considered = 0;
   std::int64_t gate_rejected = 0;
+  // Passed the gate but refused: a pair with the established map where the
+  // registration found nothing (FrameRegistrationConfig::confirm_pairings).
+  int unconfirmed_pairs = 0;
   int chi2_rejected = 0;
   int overlap_rejected = 0;
   int jc_candidates = 0;  // passed gate, chi2 and overlap

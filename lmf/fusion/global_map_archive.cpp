@@ -55,7 +55,8 @@ class GlobalMapArchive {
 //               u8 first_robot_defines_world, u8 health, i32 frame_history_per_robot,
 //               f64 footprint_radius_m, f64 crossing_margin_m, f64 crossing_max_angle_rad,
 //               registration: u8 enabled, 6 f64 (window_m, window_rad, resolution_m,
-//               min_score, ambiguity_ratio, min_constraint), i32 own_recent_maps
+//               min_score, ambiguity_ratio, min_constraint), i32 own_recent_maps,
+//               u8 confirm_pairings
 //   state       i64 next_id, i64 n, i64 capacity, u64 count + entities
 //               (i64 id, u8 kind, pose, f64 length, u8 has_parent, i64 parent,
 //               i64 offset), then P's lower triangle by columns (column j:
@@ -412,6 +413,7 @@ void write_fusion_report(ArchiveWriter& w, const FusionReport& f) {
   w.boolean(f.registration_unresolved);
   w.i64(f.pairs_considered);
   w.i64(f.gate_rejected);
+  w.i32(f.unconfirmed_pairs);
   for (const int v : {f.chi2_rejected, f.overlap_rejected, f.jc_candidates, f.jc_rejected, f.pairings_accepted,
                       f.update_rows, f.rows_dropped, f.rows_kept}) {
     w.i32(v);
@@ -458,6 +460,7 @@ FusionReport read_fusion_report(ArchiveReader& r) {
   f.registration_unresolved = r.boolean();
   f.pairs_considered = r.i64();
   f.gate_rejected = r.i64();
+  f.unconfirmed_pairs = r.i32();
   for (int* v : {&f.chi2_rejected, &f.overlap_rejected, &f.jc_candidates, &f.jc_rejected, &f.pairings_accepted,
                  &f.update_rows, &f.rows_dropped, &f.rows_kept}) {
     *v = r.i32();

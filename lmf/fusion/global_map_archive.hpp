@@ -49,7 +49,7 @@ namespace lmf::fusion {
 // outcome, offset, distance and score; PhaseTimes::registration_s). Older
 // versions are refused by name ("older version"), never read with this layout:
 // a server that finds one starts from its next good snapshot or from empty.
-inline constexpr std::uint32_t kGlobalMapArchiveVersion = 6;
+inline constexpr std::uint32_t kGlobalMapArchiveVersion = 7;
 
 // The binary archive primitives (lmf/io/binary_archive.hpp), under the names
 // the map's archive has always used.

@@ -127,6 +127,7 @@ json fusion_report_json(const fusion::FusionReport& r) {
             {"registration_unresolved", r.registration_unresolved},
             {"pairs_considered", r.pairs_considered},
             {"gate_rejected", r.gate_rejected},
+            {"unconfirmed_pairs", r.unconfirmed_pairs},
             {"chi2_rejected", r.chi2_rejected},
             {"overlap_rejected", r.overlap_rejected},
             {"jc_candidates", r.jc_candidates},
@@ -415,6 +416,16 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
       << outcomes[RegistrationOutcome::kAmbiguous] << " ambiguous and " << outcomes[RegistrationOutcome::kDegenerate]
       << " degenerate disagreements left alone, " << outcomes[RegistrationOutcome::kAgrees] << " agreed, "
       << outcomes[RegistrationOutcome::kNothingNearby] << " with nothing nearby\n";
+    if (mission.global_map().config().registration.confirm_pairings) {
+      int fusions = 0;
+      int pairs = 0;
+      for (const fusion::FusionReport& f : result.fusions) {
+        fusions += f.unconfirmed_pairs > 0 ? 1 : 0;
+        pairs += f.unconfirmed_pairs;
+      }
+      s << "unconfirmed pairings refused: " << pairs << " pairs with the established map in " << fusions
+        << " fusions whose registration found nothing there\n";
+    }
   }
   if (!result.fusion_frame_checks.empty()) s << describe_fusion_frame_checks(result.fusion_frame_checks) << "\n";
   const fusion::MapCounts counts = mission.global_map().counts();

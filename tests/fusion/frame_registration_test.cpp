@@ -270,5 +270,73 @@ TEST(FrameRegistrationTest, AConsistentRevisitIsLeftAlone) {
   EXPECT_EQ(reports[0].pairings_accepted, static_cast<int>(revisit.walls.size()));
 }
 
+// Map 0 sees the building; maps 1-4 see nothing; map 5, from where the map
+// expects it, sees furniture the map does not hold (walls turned 0.6 rad from
+// the building's, beyond the window's headings) and one wall of the building's
+// pillar. No pose of the window explains min_score of it, so the
+// one segment that lines up with the pillar is a coincidence to the
+// registration: with confirm_pairings it is not paired and is counted, as
+// long as the window held where the frame may be (maps 1-4 claim `chain`).
+struct UnconfirmedLoop {
+  std::vector<Wall> walls = building();
+  synthetic::Noise tight{0.01, 0.002, 0.005, 0.002, 0.5};
+  synthetic::Noise chain = tight;
+  Pose2 x_L0R = Pose2(2.0, 0.5, 0.3);
+
+  std::vector<Wall> last_map() const {
+    std::vector<Wall> seen;
+    for (const auto& [x, y] : {std::pair{2.0, -1.0}, std::pair{2.5, 0.2}, std::pair{1.5, 1.2}}) {
+      seen.push_back({Pose2(x, y, 0.6), 2.0});
+      seen.push_back({Pose2(x + 0.3, y - 0.4, 0.6 + M_PI / 2), 1.5});
+    }
+    seen.push_back(walls[4]);  // the pillar's first wall
+    return seen;
+  }
+  FusionReport run(GlobalMap& map) const {
+    map.fuse(synthetic::make_snapshot(0, 0, Pose2(), x_L0R, walls, tight));
+    for (int seq = 1; seq <= 4; ++seq) map.fuse(synthetic::make_snapshot(0, seq, x_L0R, Pose2(), {}, chain));
+    const std::vector<FusionReport> reports =
+        map.fuse(synthetic::make_snapshot(0, 5, x_L0R, Pose2(0.5, 0.0, 0.1), last_map(), tight));
+    EXPECT_EQ(reports.size(), 1u);
+    return reports.empty() ? FusionReport{} : reports[0];
+  }
+};
+
+TEST(FrameRegistrationTest, PairingsTheRegistrationDoesNotConfirmAreRefused) {
+  const UnconfirmedLoop loop;
+  ASSERT_EQ(loop.walls[4].length_m, 1.2);
+  GlobalMap map{GlobalMapConfig{}};
+  const FusionReport r = loop.run(map);
+  EXPECT_EQ(r.registration, RegistrationOutcome::kNothingNearby);
+  EXPECT_GE(r.unconfirmed_pairs, 1);
+  EXPECT_EQ(r.pairings_accepted, 0);
+  EXPECT_EQ(r.new_segments, static_cast<int>(loop.last_map().size()));
+  EXPECT_EQ(r.pairs_considered, r.gate_rejected + r.unconfirmed_pairs);  // maps 2-4, its own recent ones, are empty
+}
+
+// The chain of maps 1-4 claims 0.3 m each (times local_map_covariance_scale):
+// the frame's χ² region reaches beyond the window, where the registration did
+// not look; the gate decides, as without confirmation.
+TEST(FrameRegistrationTest, BeyondItsWindowTheRegistrationDoesNotVeto) {
+  UnconfirmedLoop loop;
+  loop.chain.robot_xy_m = 0.3;
+  GlobalMap map{GlobalMapConfig{}};
+  const FusionReport r = loop.run(map);
+  EXPECT_EQ(r.registration, RegistrationOutcome::kNothingNearby);
+  EXPECT_EQ(r.unconfirmed_pairs, 0);
+  EXPECT_GE(r.pairings_accepted, 1);
+}
+
+TEST(FrameRegistrationTest, WithoutConfirmationTheCoincidenceIsPaired) {
+  const UnconfirmedLoop loop;
+  GlobalMapConfig config;
+  config.registration.confirm_pairings = false;
+  GlobalMap map(config);
+  const FusionReport r = loop.run(map);
+  EXPECT_EQ(r.registration, RegistrationOutcome::kNothingNearby);
+  EXPECT_EQ(r.unconfirmed_pairs, 0);
+  EXPECT_GE(r.pairings_accepted, 1);
+}
+
 }  // namespace
 }  // namespace lmf::fusion

@@ -94,7 +94,7 @@ TEST(MissionConfigFile, ReadsTheFrameRegistration) {
   const MissionConfig c = parse_mission_config(
       R"({"global_map": {"registration": {"enabled": false, "window_m": 2.5, "window_rad": 0.2,
           "resolution_m": 0.08, "min_score": 0.5, "ambiguity_ratio": 0.8, "min_constraint": 0.1,
-          "own_recent_maps": 2}}})");
+          "own_recent_maps": 2, "confirm_pairings": false}}})");
   const fusion::FrameRegistrationConfig& g = c.global_map.registration;
   EXPECT_FALSE(g.enabled);
   EXPECT_DOUBLE_EQ(g.window_m, 2.5);
@@ -104,6 +104,7 @@ TEST(MissionConfigFile, ReadsTheFrameRegistration) {
   EXPECT_DOUBLE_EQ(g.ambiguity_ratio, 0.8);
   EXPECT_DOUBLE_EQ(g.min_constraint, 0.1);
   EXPECT_EQ(g.own_recent_maps, 2);
+  EXPECT_FALSE(g.confirm_pairings);
   EXPECT_THROW(parse_mission_config(R"({"global_map": {"registration": {"window": 1}}})"), std::invalid_argument);
   EXPECT_THROW(parse_mission_config(R"({"global_map": {"registration": {"min_score": 2}}})"), std::invalid_argument);
 }
