@@ -216,7 +216,12 @@ double OdometryModelLearner::observe(const Pose2& u, const Pose2& x_match, const
   const double rho = std::min(1.0, (config_.student_dof + 3.0) / (config_.student_dof + nis));
 
   samples_.push_back(sample);
-  while (samples_.size() > config_.memory_increments) samples_.pop_front();
+  while (samples_.size() > config_.memory_increments) {
+    const Expectation retired = expectation(samples_.front());
+    retired_normal_ += retired.normal;
+    retired_vector_ += retired.vector;
+    samples_.pop_front();
+  }
   for (std::size_t k = 0; k < config_.sweeps_per_increment; ++k) model_ = sweep();
 
   ++stats_.increments;
@@ -225,16 +230,38 @@ double OdometryModelLearner::observe(const Pose2& u, const Pose2& x_match, const
   return rho;
 }
 
-OdometryErrorModel OdometryModelLearner::sweep() const {
+OdometryModelLearner::Expectation OdometryModelLearner::expectation(const Sample& s) const {
   const Eigen::Vector3d theta_hat = model_.systematic_parameters();
+  const Eigen::Vector3d q(s.translation_regressors.dot(x_coefficients(model_)),
+                          s.translation_regressors.dot(y_coefficients(model_)),
+                          s.heading_regressors.dot(phi_coefficients(model_)));
+  Expectation out;
+  out.q_inv = q.cwiseInverse();
+  const Eigen::Matrix3d& A = s.A;
+  // E-step under the current model: the laser term moved to the current ū.
+  const Eigen::Vector3d g = s.g - s.Lambda * (A * (theta_hat - s.theta));
+  Eigen::Matrix3d information = s.Lambda;
+  information.diagonal() += out.q_inv;
+  const Eigen::Matrix3d posterior = information.inverse();
+  const Eigen::Vector3d e = posterior * g;
+  const Eigen::Vector3d v = out.q_inv.cwiseProduct(e);  // = W z
   const double nu = config_.student_dof;
-  const double prior_weight = config_.prior_increments / static_cast<double>(samples_.size());
-  const Eigen::Vector2d cx_hat = x_coefficients(model_);
-  const Eigen::Vector2d cy_hat = y_coefficients(model_);
-  const Eigen::Vector4d cphi_hat = phi_coefficients(model_);
+  const double nis = e.dot(v) + v.dot(s.Lambda_pinv * v);
+  const double rho = (nu + 3.0) / (nu + nis);
+  const Eigen::Matrix3d W = s.Lambda - s.Lambda * posterior * s.Lambda;  // (Λ⁻¹ + Q)⁻¹ by Woodbury
+  // Systematic part: z ≈ A (θ − θ̂) with information ρ W, i.e. W z = v.
+  const Eigen::Matrix3d WA = W * A;
+  out.normal = rho * A.transpose() * WA;
+  out.vector = rho * A.transpose() * (v + WA * theta_hat);
+  // Random part: the expected squared noise beside the prior's variance.
+  out.expected_noise = (rho / gaussian_weight_factor_) * e.cwiseAbs2() + posterior.diagonal();
+  return out;
+}
 
-  Eigen::Matrix3d sys_normal = Eigen::Matrix3d::Zero();
-  Eigen::Vector3d sys_vector = Eigen::Vector3d::Zero();
+OdometryErrorModel OdometryModelLearner::sweep() const {
+  const double prior_weight = config_.prior_increments / static_cast<double>(samples_.size());
+  Eigen::Matrix3d sys_normal = retired_normal_;
+  Eigen::Vector3d sys_vector = retired_vector_;
   Eigen::Matrix2d x_normal = Eigen::Matrix2d::Zero();
   Eigen::Vector2d x_vector = Eigen::Vector2d::Zero();
   Eigen::Matrix2d y_normal = Eigen::Matrix2d::Zero();
@@ -242,27 +269,11 @@ OdometryErrorModel OdometryModelLearner::sweep() const {
   Eigen::Matrix4d phi_normal = Eigen::Matrix4d::Zero();
   Eigen::Vector4d phi_vector = Eigen::Vector4d::Zero();
   for (const Sample& s : samples_) {
-    const Eigen::Vector3d q(s.translation_regressors.dot(cx_hat), s.translation_regressors.dot(cy_hat),
-                            s.heading_regressors.dot(cphi_hat));
-    const Eigen::Vector3d q_inv = q.cwiseInverse();
-    const Eigen::Matrix3d& A = s.A;
-    // E-step under the current model: the laser term moved to the current ū.
-    const Eigen::Vector3d g = s.g - s.Lambda * (A * (theta_hat - s.theta));
-    Eigen::Matrix3d information = s.Lambda;
-    information.diagonal() += q_inv;
-    const Eigen::Matrix3d posterior = information.inverse();
-    const Eigen::Vector3d e = posterior * g;
-    const Eigen::Vector3d v = q_inv.cwiseProduct(e);  // = W z
-    const double nis = e.dot(v) + v.dot(s.Lambda_pinv * v);
-    const double rho = (nu + 3.0) / (nu + nis);
-    const Eigen::Matrix3d W = s.Lambda - s.Lambda * posterior * s.Lambda;  // (Λ⁻¹ + Q)⁻¹ by Woodbury
-    // Systematic part: z ≈ A (θ − θ̂) with information ρ W, i.e. W z = v.
-    const Eigen::Matrix3d WA = W * A;
-    sys_normal.noalias() += rho * A.transpose() * WA;
-    sys_vector.noalias() += rho * A.transpose() * (v + WA * theta_hat);
-    // Random part: the expected squared noise beside the prior's variance.
-    const Eigen::Vector3d expected = (rho / gaussian_weight_factor_) * e.cwiseAbs2() + posterior.diagonal();
-    const Eigen::Vector3d w = q_inv.cwiseAbs2();  // 1/σ⁴
+    const Expectation x = expectation(s);
+    sys_normal += x.normal;
+    sys_vector += x.vector;
+    const Eigen::Vector3d& expected = x.expected_noise;
+    const Eigen::Vector3d w = x.q_inv.cwiseAbs2();  // 1/σ⁴
     x_normal.noalias() += ((1.0 + prior_weight) * w(0)) * s.translation_regressors * s.translation_regressors.transpose();
     x_vector.noalias() += (w(0) * (expected(0) + prior_weight * s.prior_variance(0))) * s.translation_regressors;
     y_normal.noalias() += ((1.0 + prior_weight) * w(1)) * s.translation_regressors * s.translation_regressors.transpose();

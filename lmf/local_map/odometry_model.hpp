@@ -22,7 +22,9 @@
 // satisfies g := Λ z = (Λ + Q⁻¹) e, a quantity that does not depend on the
 // prior; the learner keeps (û, θ̂, g, Λ) of the last memory_increments matches
 // and re-estimates the model from all of them with the current model, as an
-// EM / iteratively reweighted least squares sweep after each new match:
+// EM / iteratively reweighted least squares sweep after each new match (older
+// matches stay in the systematic part's normal equations as they were when
+// they left the memory):
 //  * for the current model, e = (Λ + Q⁻¹)⁻¹ g' (g' = g shifted to the current
 //    systematic correction) and the innovation information is W z = Q⁻¹ e with
 //    W = (Λ⁻¹ + Q)⁻¹, so nothing needs Λ⁻¹;
@@ -89,8 +91,11 @@ struct OdometryLearningConfig {
   bool enabled = true;
   // The prior counts as this many increments (the first ~10 m of driving at 0.5 m per scan).
   double prior_increments = 20.0;
-  // The model is estimated from the last this many matched increments (~150 m of
-  // driving at 0.5 m per scan): slow changes (floor, load) are followed.
+  // Each sweep re-weighs the last this many matched increments (a bound on a
+  // scan's work: a sweep is O(memory_increments)). The noise model is estimated
+  // from them; the systematic part (scales, heading bias), a constant of the
+  // robot, keeps every older increment too, with the terms it had when it
+  // left the memory.
   std::size_t memory_increments = 300;
   // EM sweeps over them after each new match.
   std::size_t sweeps_per_increment = 1;
@@ -150,6 +155,16 @@ class OdometryModelLearner {
     Eigen::Matrix3d Lambda;                  // laser information
     Eigen::Matrix3d Lambda_pinv;
   };
+  // What one sample says under the current model (the E-step): its terms of
+  // the systematic fit's normal equations, N θ = r, and its expected squared
+  // noise per axis for the noise regressions.
+  struct Expectation {
+    Eigen::Matrix3d normal;           // ρ Aᵀ W A
+    Eigen::Vector3d vector;           // ρ Aᵀ (W z + W A θ̂)
+    Eigen::Vector3d expected_noise;   // ρ-corrected E[p²] per axis
+    Eigen::Vector3d q_inv;            // 1 / Q's diagonal under the current model
+  };
+  Expectation expectation(const Sample& s) const;
   // One EM sweep over the samples from the current model; returns the new model.
   OdometryErrorModel sweep() const;
 
@@ -161,6 +176,10 @@ class OdometryModelLearner {
   // expected squared noise of an inlier by this factor, which the M-step undoes.
   double gaussian_weight_factor_ = 1.0;
   std::deque<Sample> samples_;  // the last memory_increments, oldest first
+  // The systematic part is a constant of the robot: the increments that left
+  // the memory stay in its normal equations with the terms they had then.
+  Eigen::Matrix3d retired_normal_ = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d retired_vector_ = Eigen::Vector3d::Zero();
 };
 
 // One line for people: "translation ×0.995, rotation ×0.951, heading bias

@@ -9,10 +9,12 @@
 #include <numbers>
 #include <random>
 #include <stdexcept>
+#include <vector>
 
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <Eigen/QR>
+
 #include <gtest/gtest.h>
 
 #include "test_support.hpp"
@@ -112,6 +114,7 @@ struct Simulation {
   double glitch_probability = 0.0;
   double glitch_rad = 0.0;
   unsigned seed = 1;
+  std::vector<double>* translation_scales = nullptr;  // the learned scale after each step, if given
 
   OdometryModelLearner run(const OdometryErrorModel& prior, int steps) const {
     OdometryModelLearner learner(prior, OdometryLearningConfig{});
@@ -138,6 +141,7 @@ struct Simulation {
       const Eigen::Matrix3d Q = learner.model().covariance(u);
       const Eigen::Vector3d e = (laser + Q.inverse()).ldlt().solve(laser * tangent(between(u_bar, z)));
       learner.observe(u, compose(u_bar, pose(e)), laser);
+      if (translation_scales != nullptr) translation_scales->push_back(learner.model().translation_scale);
     }
     return learner;
   }
@@ -184,6 +188,27 @@ TEST(OdometryModelLearner, RecoversSystematicAndRandomErrorsFromAPaperPrior) {
   // ... and far from the prior.
   EXPECT_GT(straight_phi_sigma(m) / straight_phi_sigma(paper_prior()), 2.0);
   EXPECT_EQ(learner.stats().increments, 400u);
+}
+
+// Odometry that is the prior itself (scale 1), seen by a laser that measures
+// the motion along the track to 3 cm a step (a corridor's few doors). The
+// scale is a constant of the robot: once the increments outnumber the memory
+// it settles instead of following the memory's last 300 (whose estimate has a
+// standard error of ~0.007 here, and wandered by that much).
+TEST(OdometryModelLearner, TheLearnedScaleSettlesBeyondTheMemory) {
+  Simulation sim;
+  sim.truth = paper_prior();
+  sim.laser = Eigen::Vector3d(1.0 / (0.03 * 0.03), 1.0 / (0.01 * 0.01), 1.0 / (0.003 * 0.003)).asDiagonal();
+  std::vector<double> scales;
+  sim.translation_scales = &scales;
+  const OdometryModelLearner learner = sim.run(paper_prior(), 3000);
+  ASSERT_EQ(scales.size(), 3000u);
+  double mean = 0.0;
+  for (std::size_t k = 2000; k < scales.size(); ++k) mean += scales[k] / 1000.0;
+  double variance = 0.0;
+  for (std::size_t k = 2000; k < scales.size(); ++k) variance += (scales[k] - mean) * (scales[k] - mean) / 1000.0;
+  EXPECT_LT(std::sqrt(variance), 0.002);
+  EXPECT_NEAR(learner.model().translation_scale, 1.0, 0.008);
 }
 
 // A heading bias beyond what unequal wheels can cause (0.1 rad/m, 5.7°/m, as
