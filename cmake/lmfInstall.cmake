@@ -18,7 +18,7 @@ include(CMakePackageConfigHelpers)
 # types. runtime/ and the process nodes are not exported: they are the programs'
 # internals, and their headers are not under lmf/.
 set(LMF_EXPORTED_MODULES
-  geometry spmap scan scan_config io sim local_map local_map_config fusion eval mission lcmtypes)
+  geometry spmap scan scan_config io sim front_end local_map local_map_config fusion eval mission lcmtypes)
 set(LMF_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/lmf)
 
 # lmf::core: every exported module at once.

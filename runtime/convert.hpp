@@ -36,7 +36,7 @@
 #include "lmf/global_map_t.hpp"
 #include "lmf/laser_scan_t.hpp"
 #include "lmf/local_map/local_map_snapshot.hpp"
-#include "lmf/local_map/odometry_model.hpp"
+#include "lmf/front_end/odometry_model.hpp"
 #include "lmf/local_map_ack_t.hpp"
 #include "lmf/local_map_t.hpp"
 #include "lmf/mission_end_t.hpp"

@@ -16,7 +16,7 @@
 #include "lmf/fusion/corrected_frame.hpp"
 #include "lmf/fusion/robot_sighting.hpp"
 #include "lmf/geometry/pose2.hpp"
-#include "lmf/local_map/odometry_model.hpp"
+#include "lmf/front_end/odometry_model.hpp"
 #include "lmf/scan/laser_scan.hpp"
 
 namespace lmf::runtime {
@@ -75,7 +75,7 @@ struct CorrectedFrames {
 using RejectCounts = std::vector<std::pair<std::string, std::int64_t>>;
 
 // The odometry error model an agent predicts with, and how much it has learned
-// from (lmf/local_map/odometry_model.hpp; the prior until the first increment).
+// from (lmf/front_end/odometry_model.hpp; the prior until the first increment).
 struct OdometryModelReport {
   OdometryErrorModel model;
   std::int64_t increments_learned = 0;

@@ -17,7 +17,7 @@
 #include "lmf/io/carmen.hpp"
 #include "lmf/local_map/local_map_config.hpp"
 #include "lmf/local_map/local_map_measurements.hpp"
-#include "lmf/scan/scan_history.hpp"
+#include "lmf/front_end/scan_history.hpp"
 #include "lmf/scan/scan_matcher.hpp"
 
 namespace {

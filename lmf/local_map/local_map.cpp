@@ -34,12 +34,20 @@ bool usable(const ObservedSegment& e) {
   return C(0, 0) >= 0.0 && C(1, 1) >= 0.0 && C(0, 0) * C(1, 1) - C(0, 1) * C(1, 0) >= -1e-12 * scale * scale;
 }
 
+void require_finite_odometry(int64_t utime, const Pose2& odometry) {
+  if (!finite(odometry)) {
+    throw std::invalid_argument("LocalMap::update: non-finite odometry pose in the scan at utime " +
+                                std::to_string(utime));
+  }
+}
+
 }  // namespace
 
 LocalMap::LocalMap(const LocalMapConfig& config, int robot_id)
     : config_(config),
       robot_id_(robot_id),
-      odometry_learner_((config.validate(), local_map::odometry_prior(config)), config.odometry_learning),
+      front_end_((config.validate(), MotionPriorConfig{local_map::odometry_prior(config), config.odometry_learning,
+                                                       config.scan_matching, config.scans_have_odometry})),
       careful_{config.careful_inverse_tolerance, 0.0},
       pairing_chi2_(config.pairing_alpha),
       joint_chi2_(config.joint_alpha),
@@ -100,15 +108,12 @@ void LocalMap::predict(const Pose2& u, const Eigen::Matrix3d& Q) {
 // The scan.
 
 ScanReport LocalMap::update(int64_t utime, const Pose2& odometry, const std::vector<ObservedSegment>& observations) {
-  return update_with(utime, odometry, observations, std::nullopt, ScanReport{});
+  require_finite_odometry(utime, odometry);
+  return update_with(utime, observations, front_end_.odometry_step(utime, odometry), ScanReport{});
 }
 
-ScanReport LocalMap::update_with(int64_t utime, const Pose2& odometry, const std::vector<ObservedSegment>& observations,
-                                 const std::optional<Motion>& motion, ScanReport report) {
-  if (!finite(odometry)) {
-    throw std::invalid_argument("LocalMap::update: non-finite odometry pose in the scan at utime " +
-                                std::to_string(utime));
-  }
+ScanReport LocalMap::update_with(int64_t utime, const std::vector<ObservedSegment>& observations,
+                                 const std::optional<MotionIncrement>& motion, ScanReport report) {
   report.utime = utime;
   report.observations = static_cast<int>(observations.size());
   report.map_segments_before = static_cast<int>(num_segments());
@@ -130,14 +135,9 @@ ScanReport LocalMap::update_with(int64_t utime, const Pose2& odometry, const std
     }
   }
 
-  // Step 1: predict with the odometry increment since the previous scan (or
-  // the scan match that refined it).
-  if (motion) {
-    predict(motion->u, motion->Q);  // (process_scan: the match, or the corrected odometry)
-  } else if (odometry_reference_) {
-    predict(between(*odometry_reference_, odometry));
-  }
-  odometry_reference_ = odometry;
+  // Step 1: predict with the motion since the previous scan (the front end's:
+  // the scan match, or the corrected odometry).
+  if (motion) predict(motion->u, motion->Q);
   if (!first_utime_) first_utime_ = utime;
   last_utime_ = utime;
 
@@ -169,50 +169,19 @@ ScanReport LocalMap::update_with(int64_t utime, const Pose2& odometry, const std
 }
 
 ScanReport LocalMap::process_scan(const LaserScan& scan) {
-  const ScanMatcherConfig& matching = config_.scan_matching;
+  require_finite_odometry(scan.utime, scan.odometry);
+  const RegisteredScan registered = front_end_.register_scan(scan);  // step 1
   ScanReport report;
-  std::optional<Motion> motion;
-  const bool have_increment = odometry_reference_ && finite(scan.odometry);
-  const int64_t dt_us = scan.utime - last_utime_;
-  // The prior of the increment: the odometry's, corrected by the learned model,
-  // or without odometry the constant-velocity prediction.
-  const bool with_odometry = config_.scans_have_odometry;
-  const Pose2 u = !have_increment ? Pose2()
-                  : with_odometry ? between(*odometry_reference_, scan.odometry)
-                                  : velocity_prior_.predict(dt_us);
-  const Pose2 u_bar = with_odometry ? odometry_model().corrected(u) : u;
-  const Eigen::Matrix3d Q = with_odometry ? odometry_model().covariance(u) : velocity_prior_.covariance();
-  if (matching.enabled && !scan_history_.empty() && have_increment) {
-    // Step 1 refined: a scan match against the recent scans, the prior as the
-    // centre of its search window and as its prior; the match teaches the
-    // odometry model.
-    // (Q is singular only for a standing robot with zero noise floors: no prior, no match.)
-    const bool prior_ok = Eigen::LLT<Eigen::Matrix3d>(Q).info() == Eigen::Success;
-    const std::optional<ScanMatch> match =
-        prior_ok ? match_scans(scan_history_.reference(), scan_points_by_kind(scan, matching), u_bar, Q, matching)
-                 : std::nullopt;
-    report.scan_match_tried = true;
-    if (match) {
-      report.scan_matched = true;
-      report.scan_match_points = match->correspondences;
-      report.scan_match_increment = match->x_AB;
-      report.scan_match_covariance = match->covariance;
-      report.scan_match_objects_moving = match->objects_moving;
-      motion = Motion{match->x_AB, match->covariance};
-      if (config_.odometry_learning.enabled && with_odometry) {
-        report.odometry_learning_weight =
-            odometry_learner_.observe(u, match->static_x_AB, match->static_laser_information);
-      }
-    }
+  report.scan_match_tried = registered.registration_tried;
+  report.odometry_learning_weight = registered.odometry_learning_weight;
+  if (const std::optional<ScanMatch>& match = registered.registration) {
+    report.scan_matched = true;
+    report.scan_match_points = match->correspondences;
+    report.scan_match_increment = match->x_AB;
+    report.scan_match_covariance = match->covariance;
+    report.scan_match_objects_moving = match->objects_moving;
   }
-  if (!with_odometry && have_increment) {
-    if (!motion) motion = Motion{u_bar, Q};  // the match failed: the prediction, as wide as the window
-    velocity_prior_.observe(motion->u, dt_us);
-  }
-  report = update_with(scan.utime, scan.odometry, extract_segments(scan, config_.extraction), motion, report);  // step 2
-  // The history goes on from the matched increment; after the odometry's alone
-  // it restarts with this scan.
-  if (matching.enabled) scan_history_.add(scan, motion ? motion->u : u, motion.has_value());
+  report = update_with(scan.utime, extract_segments(scan, config_.extraction), registered.motion, report);  // step 2
   if (config_.see_through.enabled) {
     report.segments_seen_through = remove_seen_through(scan);
     report.map_segments = static_cast<int>(num_segments());
@@ -604,8 +573,7 @@ void LocalMap::resume(int64_t seq, int64_t origin_utime, const Pose2& origin_odo
   last_utime_ = origin_utime;
   // ... with the odometry reference of that scan: update() predicts from it
   // (that scan's points are gone: no scan match for the first scan).
-  odometry_reference_ = origin_odometry;
-  scan_history_.clear();
+  front_end_.resume(origin_utime, origin_odometry);
 }
 
 }  // namespace lmf

@@ -40,12 +40,10 @@
 #include "lmf/geometry/pose2.hpp"
 #include "lmf/local_map/local_map_config.hpp"
 #include "lmf/local_map/local_map_snapshot.hpp"
-#include "lmf/local_map/constant_velocity_prior.hpp"
-#include "lmf/local_map/odometry_model.hpp"
+#include "lmf/front_end/front_end.hpp"
+#include "lmf/front_end/odometry_model.hpp"
 #include "lmf/scan/laser_scan.hpp"
 #include "lmf/scan/observed_segment.hpp"
-#include "lmf/scan/scan_history.hpp"
-#include "lmf/scan/scan_matcher.hpp"
 #include "lmf/spmap/covariance_check.hpp"
 #include "lmf/spmap/ekf.hpp"
 #include "lmf/spmap/estimator.hpp"
@@ -122,7 +120,10 @@ class LocalMap {
   // unchanged) for a non-finite odometry pose.
   ScanReport update(int64_t utime, const Pose2& odometry, const std::vector<ObservedSegment>& observations);
 
-  // Extracts segments from the scan with config().extraction, then update().
+  // The whole step for a scan: the front end (front_end.hpp) gives the motion
+  // since the previous scan, segments are extracted with config().extraction,
+  // and the filter predicts with that motion and updates. Throws
+  // std::invalid_argument (state unchanged) for a non-finite odometry pose.
   ScanReport process_scan(const LaserScan& scan);
 
   // Step 1 alone, with the odometry increment u = between(odom_prev, odom_now)
@@ -161,8 +162,12 @@ class LocalMap {
 
   // The odometry error model the prediction uses: learned from the scan matches
   // (LocalMapConfig::odometry_learning) since construction; kept across reset().
-  const OdometryErrorModel& odometry_model() const { return odometry_learner_.model(); }
-  const OdometryLearningStats& odometry_learning_stats() const { return odometry_learner_.stats(); }
+  const OdometryErrorModel& odometry_model() const { return front_end_.odometry_model(); }
+  const OdometryLearningStats& odometry_learning_stats() const {
+    return front_end_.motion_prior().odometry_learning_stats();
+  }
+  // The front end that gives process_scan its motion; it goes on across reset().
+  const FrontEnd& front_end() const { return front_end_; }
 
   const LocalMapConfig& config() const { return config_; }
   int robot_id() const { return robot_id_; }
@@ -191,13 +196,9 @@ class LocalMap {
     spmap::ImplicitMeasurement measurement;
   };
 
-  // An increment with its covariance, replacing the odometry's in step 1.
-  struct Motion {
-    Pose2 u;
-    Eigen::Matrix3d Q;
-  };
-  ScanReport update_with(int64_t utime, const Pose2& odometry, const std::vector<ObservedSegment>& observations,
-                         const std::optional<Motion>& motion, ScanReport report);
+  // Steps 1-10 with the front end's motion (none for the first scan).
+  ScanReport update_with(int64_t utime, const std::vector<ObservedSegment>& observations,
+                         const std::optional<MotionIncrement>& motion, ScanReport report);
 
   std::vector<Candidate> pair_observations(const std::vector<ObservedSegment>& observations,
                                            ScanReport& report) const;
@@ -218,19 +219,13 @@ class LocalMap {
   int64_t seq_ = 0;
   spmap::StochasticMap map_;
   spmap::EntityId robot_ = 0;
-  OdometryModelLearner odometry_learner_;
+  FrontEnd front_end_;
   // The estimator's settings (spmap/estimator.hpp): the careful inversion's
   // relative tolerance, and chi2 quantiles at each test's significance (caches).
   spmap::CarefulTolerance careful_;
   mutable spmap::Chi2Table pairing_chi2_;
   spmap::Chi2Table joint_chi2_;
   spmap::Chi2Table constraint_chi2_;
-  std::optional<Pose2> odometry_reference_;
-  // The motion prior where the scans have no odometry (scans_have_odometry false).
-  ConstantVelocityPrior velocity_prior_{config_.scan_matching};
-  // The last scans with their poses relative to the newest (scan_matching.enabled):
-  // the reference of step 1's match. Relative to the robot, so reset() keeps it.
-  ScanHistory scan_history_{config_.scan_matching};
   std::optional<int64_t> first_utime_;
   int64_t last_utime_ = 0;
   double span_m_ = 0.0;

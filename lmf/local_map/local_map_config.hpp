@@ -4,7 +4,7 @@
 
 #include <cstddef>
 
-#include "lmf/local_map/odometry_model.hpp"
+#include "lmf/front_end/odometry_model.hpp"
 #include "lmf/scan/scan_matcher.hpp"
 #include "lmf/scan/see_through.hpp"
 #include "lmf/scan/segment_extraction.hpp"

@@ -149,9 +149,8 @@ struct ScanMatcherConfig {
   double max_independent_points = 20.0;
   // ... and its covariance widened by this model noise: std of x and y (m), of
   // the angle (rad), and of the angle per radian turned (a scan taken while
-  // turning is skewed by the turn during the sweep), in quadrature.
-  // (The turn term made the matched increments' NEES on the real logs more
-  // consistent but their angles and the missions' ATE worse: off by default.)
+  // turning is skewed by the turn during the sweep), in quadrature; the turn
+  // term is off by default (docs/results.md, "The match's turn term").
   double model_noise_m = 0.01;
   double model_noise_rad = 0.003;
   double model_noise_per_rad = 0.0;

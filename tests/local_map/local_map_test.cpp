@@ -1,7 +1,7 @@
 // The local map's steps on constructed cases (docs/design.md §4): pairing, the other
 // face, fusion, perpendicular constraints, the frame shift, prediction, the ship
 // policy and snapshot/reset.
-#include "lmf/local_map/constant_velocity_prior.hpp"
+#include "lmf/front_end/constant_velocity_prior.hpp"
 #include "lmf/local_map/local_map.hpp"
 
 #include <cmath>

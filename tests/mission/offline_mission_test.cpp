@@ -1,8 +1,11 @@
 #include "lmf/mission/offline_mission.hpp"
 
 #include <cstdint>
+#include <deque>
 #include <filesystem>
 #include <string>
+#include <system_error>
+#include <utility>
 
 #include <gtest/gtest.h>
 
@@ -18,14 +21,30 @@ namespace {
 
 // A short two-robot simulated mission written to a temporary folder once.
 // A 2-robot, 150 s simulator mission, written once per seed and process.
+// The folder is removed when the process ends; one left behind by an earlier
+// process with the same id is removed before writing, so nothing stale is read.
+struct SimulatedFolder {
+  explicit SimulatedFolder(std::filesystem::path p) : path(std::move(p)) {}
+  SimulatedFolder(const SimulatedFolder&) = delete;
+  SimulatedFolder& operator=(const SimulatedFolder&) = delete;
+  std::filesystem::path path;
+  ~SimulatedFolder() {
+    std::error_code ec;
+    std::filesystem::remove_all(path, ec);
+  }
+};
+
 std::filesystem::path write_simulated_folder(std::uint64_t seed) {
   sim::MissionConfig config;
   config.num_robots = 2;
   config.duration_s = 150.0;
   config.seed = seed;
+  static std::deque<SimulatedFolder> written;  // deque: push_back moves none of them
   const std::filesystem::path out = std::filesystem::temp_directory_path() /
                                     ("lmf_mission_test_" + std::to_string(::getpid()) + "_" + std::to_string(seed));
+  std::filesystem::remove_all(out);
   sim::write_mission(sim::simulate_mission(config), out);
+  written.emplace_back(out);
   return out;
 }
 

@@ -1,4 +1,4 @@
-#include "lmf/scan/scan_history.hpp"
+#include "lmf/front_end/scan_history.hpp"
 
 #include <cmath>
 #include <utility>

@@ -1,4 +1,4 @@
-#include "lmf/local_map/odometry_model.hpp"
+#include "lmf/front_end/odometry_model.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -2,7 +2,7 @@
 // paper's proportional model as a special case, the systematic correction and
 // its Jacobian, and recovery of a known model from simulated scan matches —
 // with glitches, and with a corridor that constrains no forward motion.
-#include "lmf/local_map/odometry_model.hpp"
+#include "lmf/front_end/odometry_model.hpp"
 
 #include <cmath>
 #include <limits>

@@ -1,4 +1,4 @@
-#include "lmf/local_map/constant_velocity_prior.hpp"
+#include "lmf/front_end/constant_velocity_prior.hpp"
 
 namespace lmf {
 

@@ -1,6 +1,6 @@
 // The scan history (scan_history.hpp): poses re-expressed in the newest
 // scan's frame exactly, the keyframe rules, and the union reference.
-#include "lmf/scan/scan_history.hpp"
+#include "lmf/front_end/scan_history.hpp"
 
 #include <cmath>
 #include <vector>

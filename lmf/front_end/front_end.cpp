@@ -1,0 +1,57 @@
+#include "lmf/front_end/front_end.hpp"
+
+#include <Eigen/Cholesky>
+
+namespace lmf {
+
+FrontEnd::FrontEnd(const MotionPriorConfig& config)
+    : matching_(config.scan_matching), motion_prior_(config), local_submap_(config.scan_matching) {}
+
+RegisteredScan FrontEnd::register_scan(const LaserScan& scan) {
+  RegisteredScan out;
+  // 1. The motion prior.
+  const std::optional<MotionPrior::Prediction> prior = motion_prior_.predict(scan.utime, scan.odometry);
+  // 2. Registration against the local submap, the prior as the centre of the
+  //    search window and as the refinement's prior (Q is singular only for a
+  //    standing robot with zero noise floors: no prior, no registration).
+  if (prior && matching_.enabled && !local_submap_.empty()) {
+    out.registration_tried = true;
+    if (Eigen::LLT<Eigen::Matrix3d>(prior->motion.Q).info() == Eigen::Success) {
+      out.registration = match_scans(local_submap_.reference(), scan_points_by_kind(scan, matching_),
+                                     prior->motion.u, prior->motion.Q, matching_);
+    }
+  }
+  // 3. The motion.
+  if (prior) {
+    out.motion = out.registration ? MotionIncrement{out.registration->x_AB, out.registration->covariance}
+                                  : prior->motion;
+  }
+  // 4. The prior learns.
+  out.odometry_learning_weight = motion_prior_.advance(scan.utime, scan.odometry, prior,
+                                                       out.motion.value_or(MotionIncrement{}),
+                                                       out.registration ? &*out.registration : nullptr);
+  // 5. The local submap goes on from a registered motion. After the odometry's
+  //    alone it restarts with this scan, as the odometry's error would enter
+  //    the older scans' poses; without odometry the prediction is all there
+  //    is to go on from.
+  if (matching_.enabled) {
+    const bool connected = out.registration.has_value() || (out.motion && !motion_prior_.with_odometry());
+    local_submap_.add(scan, out.motion ? out.motion->u : Pose2(), connected);
+  }
+  return out;
+}
+
+std::optional<MotionIncrement> FrontEnd::odometry_step(int64_t utime, const Pose2& odometry) {
+  const std::optional<MotionPrior::Prediction> prior = motion_prior_.predict(utime, odometry);
+  std::optional<MotionIncrement> motion;
+  if (prior) motion = prior->motion;
+  motion_prior_.advance(utime, odometry, prior, motion.value_or(MotionIncrement{}), nullptr);
+  return motion;
+}
+
+void FrontEnd::resume(int64_t utime, const Pose2& odometry) {
+  motion_prior_.restart_from(utime, odometry);
+  local_submap_.clear();
+}
+
+}  // namespace lmf

@@ -1,0 +1,125 @@
+// The front end's pipeline (front_end.hpp): motion prior, registration against
+// the local submap, the motion handed on, learning, the submap going on.
+#include "lmf/front_end/front_end.hpp"
+
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "scan/synthetic_scan.hpp"
+
+namespace lmf {
+namespace {
+
+// A closed 10 m x 6 m room with a pillar: every direction constrained.
+testing::SyntheticWorld room() {
+  testing::SyntheticWorld w;
+  const Eigen::Vector2d c[4] = {{-3, -3}, {7, -3}, {7, 3}, {-3, 3}};
+  for (int i = 0; i < 4; ++i) w.walls.push_back({c[i], c[(i + 1) % 4]});
+  w.walls.push_back({{2.0, 1.0}, {2.5, 1.0}});
+  w.walls.push_back({{2.5, 1.0}, {2.5, 1.6}});
+  return w;
+}
+
+MotionPriorConfig config() {
+  MotionPriorConfig c;
+  c.odometry_prior = OdometryErrorModel::proportional(0.08, 0.08, 0.01, 0.001, 0.0005);
+  return c;
+}
+
+LaserScan scan_at(const Pose2& truth, const Pose2& odometry, int64_t utime) {
+  LaserScan scan = testing::make_scan(room(), truth, 361);
+  scan.odometry = odometry;
+  scan.utime = utime;
+  return scan;
+}
+
+TEST(FrontEnd, TheFirstScanHasNoMotionAndNothingToRegisterAgainst) {
+  FrontEnd front_end(config());
+  const RegisteredScan first = front_end.register_scan(scan_at(Pose2(), Pose2(), 0));
+  EXPECT_FALSE(first.motion.has_value());
+  EXPECT_FALSE(first.registration_tried);
+  EXPECT_EQ(front_end.local_submap().size(), 1U);
+}
+
+TEST(FrontEnd, TheRegisteredMotionCorrectsTheOdometryAndTeachesTheModel) {
+  FrontEnd front_end(config());
+  front_end.register_scan(scan_at(Pose2(), Pose2(), 0));
+  // The odometry says 0.55 m and 0.1 rad; the robot went 0.5 m and 0.08 rad.
+  const Pose2 truth(0.5, 0.0, 0.08);
+  const RegisteredScan second = front_end.register_scan(scan_at(truth, Pose2(0.55, 0.0, 0.1), 100000));
+  ASSERT_TRUE(second.registration.has_value());
+  ASSERT_TRUE(second.motion.has_value());
+  // Within 3 σ of its own covariance on each axis, and far closer than the odometry.
+  const Eigen::Matrix3d& Q = second.motion->Q;
+  EXPECT_TRUE(Q.isApprox(second.registration->covariance));
+  EXPECT_NEAR(second.motion->u.x, truth.x, 3.0 * std::sqrt(Q(0, 0)));
+  EXPECT_NEAR(second.motion->u.y, truth.y, 3.0 * std::sqrt(Q(1, 1)));
+  EXPECT_NEAR(second.motion->u.phi, truth.phi, 3.0 * std::sqrt(Q(2, 2)));
+  EXPECT_LT(std::abs(second.motion->u.phi - truth.phi), 0.2 * 0.02);
+  EXPECT_GT(second.odometry_learning_weight, 0.0);
+  EXPECT_EQ(front_end.motion_prior().odometry_learning_stats().increments, 1U);
+  EXPECT_EQ(front_end.local_submap().size(), 2U);
+}
+
+TEST(FrontEnd, AFailedRegistrationHandsOnThePriorAndRestartsTheSubmap) {
+  FrontEnd front_end(config());
+  front_end.register_scan(scan_at(Pose2(), Pose2(), 0));
+  front_end.register_scan(scan_at(Pose2(0.3, 0.0, 0.0), Pose2(0.3, 0.0, 0.0), 100000));
+  ASSERT_EQ(front_end.local_submap().size(), 2U);
+  // A scan that sees nothing: the motion is the corrected odometry with the model's covariance.
+  LaserScan blind = scan_at(Pose2(0.6, 0.0, 0.0), Pose2(0.6, 0.0, 0.0), 200000);
+  for (double& r : blind.ranges_m) r = blind.max_range_m;
+  const Pose2 u(0.3, 0.0, 0.0);
+  const RegisteredScan step = front_end.register_scan(blind);
+  EXPECT_TRUE(step.registration_tried);
+  EXPECT_FALSE(step.registration.has_value());
+  ASSERT_TRUE(step.motion.has_value());
+  const OdometryErrorModel& model = front_end.odometry_model();
+  EXPECT_NEAR(step.motion->u.x, model.corrected(u).x, 1e-12);
+  EXPECT_TRUE(step.motion->Q.isApprox(model.covariance(u)));
+  EXPECT_EQ(step.odometry_learning_weight, 0.0);
+  EXPECT_EQ(front_end.local_submap().size(), 1U);
+}
+
+TEST(FrontEnd, WithoutOdometryTheMotionIsPredictedAtConstantVelocity) {
+  MotionPriorConfig c = config();
+  c.scans_have_odometry = false;
+  FrontEnd front_end(c);
+  // The odometry field is ignored: it stays zero while the robot moves 0.2 m per 0.1 s.
+  front_end.register_scan(scan_at(Pose2(), Pose2(), 0));
+  const RegisteredScan second = front_end.register_scan(scan_at(Pose2(0.2, 0.0, 0.0), Pose2(), 100000));
+  ASSERT_TRUE(second.registration.has_value());
+  EXPECT_NEAR(second.motion->u.x, 0.2, 0.01);
+  EXPECT_EQ(second.odometry_learning_weight, 0.0);  // no odometry model to teach
+  // The next prediction goes on at that velocity.
+  const std::optional<MotionPrior::Prediction> next = front_end.motion_prior().predict(200000, Pose2());
+  ASSERT_TRUE(next.has_value());
+  EXPECT_NEAR(next->motion.u.x, second.motion->u.x, 1e-12);
+}
+
+TEST(FrontEnd, AResumedChainPredictsFromTheGivenReadingWithoutRegistering) {
+  FrontEnd front_end(config());
+  front_end.register_scan(scan_at(Pose2(), Pose2(), 0));
+  front_end.resume(500000, Pose2(1.0, 0.0, 0.0));
+  EXPECT_TRUE(front_end.local_submap().empty());
+  const RegisteredScan step = front_end.register_scan(scan_at(Pose2(1.4, 0.0, 0.0), Pose2(1.4, 0.0, 0.0), 600000));
+  EXPECT_FALSE(step.registration_tried);
+  ASSERT_TRUE(step.motion.has_value());
+  EXPECT_NEAR(step.motion->u.x, 0.4, 1e-9);
+}
+
+TEST(FrontEnd, TheOdometryStepIsThePriorAlone) {
+  FrontEnd front_end(config());
+  EXPECT_FALSE(front_end.odometry_step(0, Pose2()).has_value());
+  const std::optional<MotionIncrement> m = front_end.odometry_step(100000, Pose2(0.5, 0.1, 0.2));
+  ASSERT_TRUE(m.has_value());
+  const Pose2 u(0.5, 0.1, 0.2);
+  EXPECT_NEAR(m->u.phi, front_end.odometry_model().corrected(u).phi, 1e-12);
+  EXPECT_TRUE(m->Q.isApprox(front_end.odometry_model().covariance(u)));
+  EXPECT_TRUE(front_end.local_submap().empty());  // no points: nothing to match later scans against
+}
+
+}  // namespace
+}  // namespace lmf
