@@ -1,8 +1,23 @@
 #include "lmf/front_end/front_end.hpp"
 
+#include <algorithm>
+
 #include <Eigen/Cholesky>
 
 namespace lmf {
+namespace {
+
+// Q with each axis's variance raised to at least (window / 3)², the window's
+// σ: translation search_window_m on x and y, rotation search_window_rad.
+Eigen::Matrix3d at_least_the_window(const Eigen::Matrix3d& Q, const ScanMatcherConfig& matching) {
+  const Eigen::Vector3d window_sigma(matching.search_window_m / 3.0, matching.search_window_m / 3.0,
+                                     matching.search_window_rad / 3.0);
+  Eigen::Matrix3d widened = Q;
+  for (int i = 0; i < 3; ++i) widened(i, i) += std::max(0.0, window_sigma(i) * window_sigma(i) - Q(i, i));
+  return widened;
+}
+
+}  // namespace
 
 FrontEnd::FrontEnd(const MotionPriorConfig& config)
     : matching_(config.scan_matching), motion_prior_(config), local_submap_(config.scan_matching) {}
@@ -21,10 +36,16 @@ RegisteredScan FrontEnd::register_scan(const LaserScan& scan) {
                                      prior->motion.u, prior->motion.Q, matching_);
     }
   }
-  // 3. The motion.
-  if (prior) {
-    out.motion = out.registration ? MotionIncrement{out.registration->x_AB, out.registration->covariance}
-                                  : prior->motion;
+  // 3. The motion: the registration's, or the prior's where there was none.
+  //    Where the registration was tried and failed, the prior goes unchecked:
+  //    it then claims no more than the search window, which is sized to hold
+  //    what the motion can physically do between two scans (σ = window / 3
+  //    per axis, as the constant-velocity prior's).
+  if (out.registration) {
+    out.motion = MotionIncrement{out.registration->x_AB, out.registration->covariance};
+  } else if (prior) {
+    out.motion = prior->motion;
+    if (out.registration_tried) out.motion->Q = at_least_the_window(out.motion->Q, matching_);
   }
   // 4. The prior learns.
   out.odometry_learning_weight = motion_prior_.advance(scan.utime, scan.odometry, prior,

@@ -6,8 +6,8 @@
 //      odometry model, or constant velocity;
 //   2. registration (scan_matcher.hpp): the scan against the local submap,
 //      a correlative search around the prior and a refinement with the prior;
-//   3. the motion: the registration's where it succeeded, the prior's where
-//      it did not;
+//   3. the motion: the registration's where it succeeded; the prior's where
+//      it failed, claiming no more than the search window (σ = window / 3);
 //   4. the prior learns from what the laser measured;
 //   5. the local submap (scan_history.hpp) goes on from the motion.
 //

@@ -2,6 +2,7 @@
 // the local submap, the motion handed on, learning, the submap going on.
 #include "lmf/front_end/front_end.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -68,7 +69,8 @@ TEST(FrontEnd, AFailedRegistrationHandsOnThePriorAndRestartsTheSubmap) {
   front_end.register_scan(scan_at(Pose2(), Pose2(), 0));
   front_end.register_scan(scan_at(Pose2(0.3, 0.0, 0.0), Pose2(0.3, 0.0, 0.0), 100000));
   ASSERT_EQ(front_end.local_submap().size(), 2U);
-  // A scan that sees nothing: the motion is the corrected odometry with the model's covariance.
+  // A scan that sees nothing: the motion is the corrected odometry, its
+  // covariance the model's raised to the search window's σ (window / 3) per axis.
   LaserScan blind = scan_at(Pose2(0.6, 0.0, 0.0), Pose2(0.6, 0.0, 0.0), 200000);
   for (double& r : blind.ranges_m) r = blind.max_range_m;
   const Pose2 u(0.3, 0.0, 0.0);
@@ -78,7 +80,12 @@ TEST(FrontEnd, AFailedRegistrationHandsOnThePriorAndRestartsTheSubmap) {
   ASSERT_TRUE(step.motion.has_value());
   const OdometryErrorModel& model = front_end.odometry_model();
   EXPECT_NEAR(step.motion->u.x, model.corrected(u).x, 1e-12);
-  EXPECT_TRUE(step.motion->Q.isApprox(model.covariance(u)));
+  const Eigen::Matrix3d Q = model.covariance(u);
+  const ScanMatcherConfig& window = config().scan_matching;
+  EXPECT_DOUBLE_EQ(step.motion->Q(0, 0), std::max(Q(0, 0), std::pow(window.search_window_m / 3.0, 2)));
+  EXPECT_DOUBLE_EQ(step.motion->Q(1, 1), std::max(Q(1, 1), std::pow(window.search_window_m / 3.0, 2)));
+  EXPECT_DOUBLE_EQ(step.motion->Q(2, 2), std::max(Q(2, 2), std::pow(window.search_window_rad / 3.0, 2)));
+  EXPECT_GT(step.motion->Q(2, 2), Q(2, 2));  // the model alone claimed more than it could show
   EXPECT_EQ(step.odometry_learning_weight, 0.0);
   EXPECT_EQ(front_end.local_submap().size(), 1U);
 }
