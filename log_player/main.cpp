@@ -66,6 +66,8 @@ int main(int argc, char** argv) {
       ("config", po::value(&config_file), "mission JSON config; its sighting_noise section is used")
       ("start-delay-ms", po::value(&start_delay_ms)->default_value(start_delay_ms),
        "wait this long before the first scan (for subscribers to start)")
+      ("no-sightings", "send no sightings (nor the start poses --gt gives as sightings): robots after the first "
+                       "join only where a local map of theirs is placed without one")
       ("quiet", "no progress output");
   recordings.add_to(description);
   po::variables_map vm;
@@ -90,6 +92,7 @@ int main(int argc, char** argv) {
     recordings.finish(vm);
     inputs = sim_dir.empty() ? lmf::mission::load_recordings(recordings.read(), split, gt, config.sighting_noise)
                              : lmf::mission::load_sim_folder(sim_dir, config.sighting_noise);
+    if (vm.count("no-sightings") != 0u) lmf::mission::drop_sightings(inputs);
     options.channels = rt::Channels(common.channel_prefix);
     options.lockstep = vm.count("lockstep") != 0u;
     options.rate = rate;

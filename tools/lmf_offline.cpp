@@ -22,8 +22,8 @@ int main(int argc, char** argv) {
   po::options_description options(
       "lmf-offline: runs one local map per robot and the global map over recorded or simulated\n"
       "robots in one deterministic process, then writes trajectories, the map and a report.\n\n"
-      "Usage: lmf-offline (--log FILE... | --bag FILE...) [--split N] [--gt FILE] [--config FILE] --out DIR\n"
-      "       lmf-offline --sim DIR [--config FILE] --out DIR\n\n"
+      "Usage: lmf-offline (--log FILE... | --bag FILE...) [--split N] [--gt FILE] [--no-sightings] [--config FILE] --out DIR\n"
+      "       lmf-offline --sim DIR [--no-sightings] [--config FILE] --out DIR\n\n"
       "Options");
   lmf::tools::RecordingOptions recordings;
   int split = 1;
@@ -42,7 +42,10 @@ int main(int argc, char** argv) {
       "config", po::value(&config_file), "JSON config (sections local_map, global_map, sighting_noise)")(
       "seed", po::value(&seed), "seed of the sighting noise (overrides the config's)")(
       "out", po::value(&out), "output folder (created)")(
-      "map-graph", "draw the environment graph (submap nodes, consecutive and paired edges) in map.svg");
+      "map-graph", "draw the environment graph (submap nodes, consecutive and paired edges) in map.svg")(
+      "no-sightings",
+      "drop every sighting (and, with --gt, the start poses taken as sightings): robots after the first "
+      "join only where a local map of theirs is placed without one");
   recordings.add_to(options);
   po::variables_map vm;
   try {
@@ -69,6 +72,7 @@ int main(int argc, char** argv) {
     lmf::mission::MissionInputs inputs =
         sim_dir.empty() ? lmf::mission::load_recordings(recordings.read(), split, gt, config.sighting_noise)
                         : lmf::mission::load_sim_folder(sim_dir, config.sighting_noise);
+    if (vm.count("no-sightings") != 0u) lmf::mission::drop_sightings(inputs);
     lmf::mission::OfflineMission mission(config, std::move(inputs));
     const lmf::mission::MissionResult result = mission.run();
     const auto score = lmf::mission::score_mission(result, mission.inputs(), mission.global_map());

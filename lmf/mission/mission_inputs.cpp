@@ -80,6 +80,14 @@ MissionInputs load_logs(const std::vector<std::filesystem::path>& logs, int spli
   return load_recordings(std::move(recordings), split, reference, noise);
 }
 
+void drop_sightings(MissionInputs& inputs) {
+  const std::size_t dropped = inputs.sightings.size();
+  inputs.sightings.clear();
+  inputs.notes.push_back("no sightings (" + std::to_string(dropped) +
+                         " dropped): the robots after the first join only where a local map of theirs is placed "
+                         "without one");
+}
+
 MissionInputs load_recordings(std::vector<RecordedLog> logs, int split, const std::filesystem::path& reference,
                               const SightingNoise& noise) {
   if (logs.empty()) throw std::invalid_argument("load_logs: no log given");

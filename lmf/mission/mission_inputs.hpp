@@ -77,6 +77,12 @@ MissionInputs load_logs(const std::vector<std::filesystem::path>& logs, int spli
 MissionInputs load_recordings(std::vector<RecordedLog> logs, int split, const std::filesystem::path& reference,
                               const SightingNoise& noise);
 
+// The same inputs without their sightings (--no-sightings): the first robot
+// still defines W; every other one joins only when a local map of it is placed
+// in the global map without one (docs/design.md §10, place recognition). A note
+// says so.
+void drop_sightings(MissionInputs& inputs);
+
 // An lmf-sim folder: robotN.log, robotN.gt, sightings.json (true x_AB; noise is
 // added here), for the robots mission.json lists (without mission.json: robot0,
 // robot1, ... up to the first missing log). Robot 0 defines W; the others join

@@ -103,6 +103,27 @@ TEST(OfflineMission, FusionFrameChecksFollowTheReference) {
   }
 }
 
+// --no-sightings: the first robot defines W; without a sighting, and with no
+// local map of it placed in the global map otherwise, the second never joins,
+// and its local maps wait in the server's queue, not lost.
+TEST(OfflineMission, WithoutSightingsTheOtherRobotsMapsWait) {
+  MissionInputs inputs = load_sim_folder(simulated_folder(), SightingNoise{});
+  ASSERT_FALSE(inputs.sightings.empty());
+  drop_sightings(inputs);
+  EXPECT_TRUE(inputs.sightings.empty());
+  ASSERT_FALSE(inputs.notes.empty());
+  EXPECT_NE(inputs.notes.back().find("no sightings"), std::string::npos) << inputs.notes.back();
+  OfflineMission mission(load_mission_config(std::string(LMF_CONFIG_DIR) + "/sim.json"), inputs);
+  const MissionResult result = mission.run();
+  ASSERT_EQ(result.robots.size(), 2U);
+  EXPECT_TRUE(result.robots[0].joined);
+  EXPECT_GT(result.robots[0].local_maps_fused, 0U);
+  EXPECT_FALSE(result.robots[1].joined);
+  EXPECT_EQ(result.robots[1].local_maps_fused, 0U);
+  EXPECT_GT(result.robots[1].local_maps_shipped, 0U);
+  EXPECT_EQ(static_cast<std::size_t>(mission.global_map().queued_count()), result.robots[1].local_maps_shipped);
+}
+
 TEST(OfflineMission, FusionFrameChecksCountNoticeableMoves) {
   const std::vector<FusionFrameCheck> checks = {
       {0, 1, 0.30, 0.00, 0.10, 0.00},  // 0.2 m closer

@@ -237,7 +237,10 @@ TEST(AgentRestart, ResendsUnacknowledgedMapsAndContinuesFromThePersistedOrigin) 
   AgentOptions options;
   options.robot_id = 0;
   options.local_map.ship_distance_m = 2.0;
-  options.resend_interval = 10s;  // no resend unless restarted: the test sees each transmission
+  // No resend unless restarted, however slowly the scans go through (a
+  // sanitizer build under load): the test sees each transmission.
+  options.resend_interval = 10s;
+  options.min_resend_interval = 10s;
   options.status_interval = 1s;
   options.max_seq_gap = 3;
   options.state_dir = state_dir.path();
