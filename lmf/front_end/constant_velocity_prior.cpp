@@ -2,11 +2,8 @@
 
 namespace lmf {
 
-ConstantVelocityPrior::ConstantVelocityPrior(const ScanMatcherConfig& matching) {
-  const double sigma_xy = matching.search_window_m / 3.0;
-  const double sigma_phi = matching.search_window_rad / 3.0;
-  covariance_ = Eigen::Vector3d(sigma_xy * sigma_xy, sigma_xy * sigma_xy, sigma_phi * sigma_phi).asDiagonal();
-}
+ConstantVelocityPrior::ConstantVelocityPrior(const ScanMatcherConfig& matching)
+    : covariance_(search_window_covariance(matching)) {}
 
 Pose2 ConstantVelocityPrior::predict(int64_t dt_us) const {
   const Eigen::Vector3d u = velocity_ * (static_cast<double>(dt_us) * 1e-6);

@@ -7,13 +7,12 @@
 namespace lmf {
 namespace {
 
-// Q with each axis's variance raised to at least (window / 3)², the window's
-// σ: translation search_window_m on x and y, rotation search_window_rad.
+// Q with each axis's variance raised to at least the search window's
+// (search_window_covariance).
 Eigen::Matrix3d at_least_the_window(const Eigen::Matrix3d& Q, const ScanMatcherConfig& matching) {
-  const Eigen::Vector3d window_sigma(matching.search_window_m / 3.0, matching.search_window_m / 3.0,
-                                     matching.search_window_rad / 3.0);
+  const Eigen::Matrix3d window = search_window_covariance(matching);
   Eigen::Matrix3d widened = Q;
-  for (int i = 0; i < 3; ++i) widened(i, i) += std::max(0.0, window_sigma(i) * window_sigma(i) - Q(i, i));
+  for (int i = 0; i < 3; ++i) widened(i, i) += std::max(0.0, window(i, i) - Q(i, i));
   return widened;
 }
 

@@ -239,6 +239,12 @@ int ReferenceScan::nearest(const Eigen::Vector2d& q, double gate) const {
   }
   return best;
 }
+Eigen::Matrix3d search_window_covariance(const ScanMatcherConfig& config) {
+  const double sigma_xy = config.search_window_m / 3.0;
+  const double sigma_phi = config.search_window_rad / 3.0;
+  return Eigen::Vector3d(sigma_xy * sigma_xy, sigma_xy * sigma_xy, sigma_phi * sigma_phi).asDiagonal();
+}
+
 std::vector<Eigen::Vector2d> scan_points(const LaserScan& scan, const ScanMatcherConfig& config) {
   std::vector<Eigen::Vector2d> points;
   points.reserve(scan.ranges_m.size());

@@ -165,6 +165,11 @@ struct ScanMatcherConfig {
   void validate() const;
 };
 
+// What the search window stands for: it is sized to hold what the motion can
+// do between two scans at 3σ, so σ = search_window_m / 3 in x and y and
+// search_window_rad / 3 in heading; the diagonal covariance of those.
+Eigen::Matrix3d search_window_covariance(const ScanMatcherConfig& config);
+
 // Points of a scan with unit normals facing the sensor, in the scan's frame:
 // those usable points whose beam neighbours (normal_radius_m, max_normal_flatness)
 // lie on a line; and the other usable points (corners, clutter, walls seen at
