@@ -45,7 +45,7 @@ int main(int argc, char** argv) {
       "map-graph", "draw the environment graph (submap nodes, consecutive and paired edges) in map.svg")(
       "no-sightings",
       "drop every sighting (and, with --gt, the start poses taken as sightings): robots after the first "
-      "join only where a local map of theirs is placed without one");
+      "join only by place recognition (global_map.place_recognition.enabled; off by default: they wait)");
   recordings.add_to(options);
   po::variables_map vm;
   try {

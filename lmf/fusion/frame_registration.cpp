@@ -41,13 +41,17 @@ namespace {
 constexpr double kMaxLocalPoints = 8192;
 constexpr double kMaxHalfRotations = 256;
 
-struct SampledPoint {
-  Eigen::Vector2d p;  // in the segments' frame
-  Eigen::Vector2d n;  // unit normal of its wall
-};
+double mean_likelihood(const LikelihoodField& field, const std::vector<Eigen::Vector2d>& points, const Pose2& x) {
+  const Eigen::Matrix2d R = Eigen::Rotation2Dd(x.phi).toRotationMatrix();
+  const Eigen::Vector2d t(x.x, x.y);
+  double sum = 0.0;
+  for (const Eigen::Vector2d& p : points) sum += field.likelihood(t + R * p);
+  return points.empty() ? 0.0 : sum / static_cast<double>(points.size());
+}
 
-// Points every `spacing` along each segment, ends included.
-std::vector<SampledPoint> sample(const std::vector<RegistrationSegment>& segments, double spacing) {
+}  // namespace
+
+std::vector<SampledPoint> sample_segments(const std::vector<RegistrationSegment>& segments, double spacing) {
   std::vector<SampledPoint> out;
   for (const RegistrationSegment& s : segments) {
     const Eigen::Vector2d c(s.location.x, s.location.y);
@@ -61,15 +65,14 @@ std::vector<SampledPoint> sample(const std::vector<RegistrationSegment>& segment
   return out;
 }
 
-double mean_likelihood(const LikelihoodField& field, const std::vector<Eigen::Vector2d>& points, const Pose2& x) {
-  const Eigen::Matrix2d R = Eigen::Rotation2Dd(x.phi).toRotationMatrix();
-  const Eigen::Vector2d t(x.x, x.y);
-  double sum = 0.0;
-  for (const Eigen::Vector2d& p : points) sum += field.likelihood(t + R * p);
-  return points.empty() ? 0.0 : sum / static_cast<double>(points.size());
+Eigen::Matrix3d mean_point_information(const std::vector<SampledPoint>& points) {
+  Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
+  for (const SampledPoint& s : points) {
+    const Eigen::Vector3d J(s.n.x(), s.n.y(), s.n.dot(Eigen::Vector2d(-s.p.y(), s.p.x())));
+    information += J * J.transpose();
+  }
+  return points.empty() ? information : Eigen::Matrix3d(information / static_cast<double>(points.size()));
 }
-
-}  // namespace
 
 std::optional<FrameRegistration> register_frame(const std::vector<RegistrationSegment>& local,
                                                 const std::vector<RegistrationSegment>& global,
@@ -77,19 +80,16 @@ std::optional<FrameRegistration> register_frame(const std::vector<RegistrationSe
   const double r = config.resolution_m;
   double local_length = 0.0;
   for (const RegistrationSegment& s : local) local_length += s.length_m;
-  const std::vector<SampledPoint> local_points = sample(local, std::max(2.0 * r, local_length / kMaxLocalPoints));
+  const std::vector<SampledPoint> local_points = sample_segments(local, std::max(2.0 * r, local_length / kMaxLocalPoints));
   if (local_points.empty() || global.empty()) return std::nullopt;
   std::vector<Eigen::Vector2d> points;
   points.reserve(local_points.size());
   double farthest = 0.0;
-  Eigen::Matrix3d information = Eigen::Matrix3d::Zero();  // mean over points of J Jᵀ, J = ∂(n·p_W)/∂(x, y, φ)
   for (const SampledPoint& s : local_points) {
     points.push_back(s.p);
     farthest = std::max(farthest, s.p.norm());
-    const Eigen::Vector3d J(s.n.x(), s.n.y(), s.n.dot(Eigen::Vector2d(-s.p.y(), s.p.x())));
-    information += J * J.transpose();
   }
-  information /= static_cast<double>(local_points.size());
+  const Eigen::Matrix3d information = mean_point_information(local_points);
 
   // The field covers where the local points can land within the window.
   const Eigen::Matrix2d R = Eigen::Rotation2Dd(x_WL.phi).toRotationMatrix();
@@ -99,7 +99,7 @@ std::optional<FrameRegistration> register_frame(const std::vector<RegistrationSe
   reach.min().array() -= margin;
   reach.max().array() += margin;
   std::vector<Eigen::Vector2d> reference;
-  for (const SampledPoint& s : sample(global, r)) {
+  for (const SampledPoint& s : sample_segments(global, r)) {
     if (reach.contains(s.p)) reference.push_back(s.p);
   }
   if (reference.empty()) return std::nullopt;

@@ -87,6 +87,20 @@ struct RegistrationSegment {
   double length_m = 0.0;
 };
 
+// A point sampled along a segment, with its wall's unit normal.
+struct SampledPoint {
+  Eigen::Vector2d p;  // in the segments' frame
+  Eigen::Vector2d n;
+};
+
+// Points every `spacing` (at most) along each segment, ends included.
+std::vector<SampledPoint> sample_segments(const std::vector<RegistrationSegment>& segments, double spacing);
+
+// The mean over the points of J Jᵀ, J = ∂(n · (x ⊕ p))/∂(x, y, φ) at x = 0:
+// the mean squared displacement of the points across their walls for a small
+// change d of the frame is dᵀ M d (M's translation block: Σ n nᵀ / N).
+Eigen::Matrix3d mean_point_information(const std::vector<SampledPoint>& points);
+
 struct FrameRegistration {
   Pose2 x_WL;                // the best pose of the window
   double score = 0.0;        // its mean likelihood, [0, 1]

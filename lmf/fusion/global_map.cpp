@@ -90,6 +90,7 @@ void GlobalMapConfig::validate() const {
   require(crossing_max_angle_rad > 0.0 && crossing_max_angle_rad <= std::numbers::pi / 2,
           "crossing_max_angle_rad must be in (0, pi/2]");
   registration.validate();
+  place_recognition.validate();
 }
 
 const char* to_string(RegistrationOutcome outcome) {
@@ -100,6 +101,16 @@ const char* to_string(RegistrationOutcome outcome) {
     case RegistrationOutcome::kAmbiguous: return "ambiguous";
     case RegistrationOutcome::kDegenerate: return "degenerate";
     case RegistrationOutcome::kRelocated: return "relocated";
+  }
+  return "unknown";
+}
+
+const char* to_string(JoinKind kind) {
+  switch (kind) {
+    case JoinKind::kFirst: return "first";
+    case JoinKind::kKnownFrame: return "known_frame";
+    case JoinKind::kSighting: return "sighting";
+    case JoinKind::kPlace: return "place";
   }
   return "unknown";
 }
@@ -178,6 +189,12 @@ void GlobalMap::validate(const LocalMapSnapshot& s) const {
 // Queries
 
 bool GlobalMap::is_joined(int robot_id) const { return arrivals_.is_joined(robot_id); }
+
+std::optional<RobotJoin> GlobalMap::how_joined(int robot_id) const {
+  const auto it = joins_.find(robot_id);
+  if (it == joins_.end()) return std::nullopt;
+  return it->second;
+}
 
 bool GlobalMap::has_fused(int robot_id, std::int64_t seq) const { return arrivals_.has_fused(robot_id, seq); }
 
@@ -270,6 +287,7 @@ std::vector<FusionReport> GlobalMap::join_robot(int robot_id, const Pose2& x_WL,
   std::vector<FusionReport> out;
   const EntityId L = state_.add(EntityKind::kFrame, x_WL);
   state_.set_block(L, L, covariance);
+  joins_[robot_id] = {JoinKind::kKnownFrame, seq};
   join(robot_id, L, seq, Sightings::kResolveAfterEachFusion, out);
   resolve_sightings(out);
   return out;
@@ -326,6 +344,7 @@ std::optional<SightingStatus> GlobalMap::resolve(const RobotSighting& s, Sightin
   if (is_joined(s.observed_id)) return SightingStatus::kIgnored;
   const std::optional<RobotArrivals::SightedJoin> placed = arrivals_.place_sighted_frame(s, graph_, state_);
   if (!placed) return std::nullopt;
+  joins_[s.observed_id] = {JoinKind::kSighting, s.observed_seq};
   join(s.observed_id, placed->frame, s.observed_seq, sightings, out);
   return placed->approximate ? SightingStatus::kJoinedApproximately : SightingStatus::kJoined;
 }
@@ -354,12 +373,52 @@ std::vector<FusionReport> GlobalMap::fuse(const LocalMapSnapshot& snapshot) {
   if (!arrivals_.any_joined() && config_.first_robot_defines_world) {
     // docs/design.md §5: the first robot defines the global frame.
     const EntityId L = state_.add(EntityKind::kFrame, Pose2());
+    joins_[snapshot.robot_id] = {JoinKind::kFirst, snapshot.seq};
     join(snapshot.robot_id, L, snapshot.seq, Sightings::kResolveAfterEachFusion, out);
   } else if (is_joined(snapshot.robot_id)) {
     drain(snapshot.robot_id, Sightings::kResolveAfterEachFusion, out);
+  } else if (arrivals_.any_joined() && config_.place_recognition.enabled) {
+    join_by_place(snapshot.robot_id, out);
   }
   resolve_sightings(out);
+  if (!out.empty() && config_.place_recognition.enabled) retry_places(out);
   return out;
+}
+
+void GlobalMap::join_by_place(int robot_id, std::vector<FusionReport>& out) {
+  std::vector<RegistrationSegment> global;
+  for (const Entity& e : state_.entities()) {
+    if (e.kind == EntityKind::kSegment) global.push_back({state_.root_location(e.id), e.length_m});
+  }
+  for (const LocalMapSnapshot* snapshot :
+       arrivals_.oldest_waiting_maps(robot_id, 1 + config_.registration.own_recent_maps)) {
+    std::vector<RegistrationSegment> local;
+    for (const SegmentEstimate& s : snapshot->segments) local.push_back({s.location, s.length_m});
+    const PlaceRecognition place = recognise_place(local, global, config_.registration, config_.place_recognition);
+    switch (place.outcome) {
+      case PlaceOutcome::kPlaced: ++place_counts_.placed; break;
+      case PlaceOutcome::kNotFound: ++place_counts_.not_found; continue;
+      case PlaceOutcome::kAmbiguous: ++place_counts_.ambiguous; continue;
+      case PlaceOutcome::kDegenerate: ++place_counts_.degenerate; continue;
+    }
+    // L_r where the local map was found, with the registration field's σ (two
+    // cells) and two angular steps as its standard deviations: the pairing
+    // tests then judge the local map's segments against the map's near it.
+    const double sigma_xy = 2.0 * place.resolution_m;
+    const double sigma_phi = 2.0 * place.angular_step_rad;
+    const EntityId L = state_.add(EntityKind::kFrame, place.x_WL);
+    state_.set_block(L, L, Eigen::Vector3d(sigma_xy * sigma_xy, sigma_xy * sigma_xy, sigma_phi * sigma_phi).asDiagonal());
+    const std::int64_t seq = snapshot->seq;  // the snapshot leaves the queue as it fuses
+    joins_[robot_id] = {JoinKind::kPlace, seq, place.score};
+    join(robot_id, L, seq, Sightings::kResolveAfterEachFusion, out);
+    return;
+  }
+}
+
+void GlobalMap::retry_places(std::vector<FusionReport>& out) {
+  for (const int robot_id : arrivals_.waiting()) {
+    if (!is_joined(robot_id)) join_by_place(robot_id, out);  // (an earlier one's fusions may have joined it)
+  }
 }
 
 FusionReport GlobalMap::fuse_one(int robot_id, const LocalMapSnapshot& snapshot) {

@@ -63,6 +63,7 @@
 #include "lmf/fusion/robot_arrivals.hpp"
 #include "lmf/fusion/robot_footprints.hpp"
 #include "lmf/fusion/frame_registration.hpp"
+#include "lmf/fusion/place_recognition.hpp"
 #include "lmf/geometry/pose2.hpp"
 #include "lmf/local_map/local_map_snapshot.hpp"
 #include "lmf/spmap/segment_ops.hpp"
@@ -175,6 +176,10 @@ struct GlobalMapConfig {
   // test at `alpha`, unambiguously, the frame moves there with its covariance
   // widened by the move (fusion_steps.hpp, relocate_frame).
   FrameRegistrationConfig registration;
+  // Place recognition (beyond the paper; place_recognition.hpp): a local map
+  // of a robot that has not joined is looked for in the whole global map; where
+  // it is found, unambiguously, the robot joins there, without a sighting.
+  PlaceRecognitionConfig place_recognition;
 
   // Throws std::invalid_argument naming the first bad field.
   void validate() const;
@@ -192,8 +197,9 @@ inline constexpr std::array<std::pair<const char*, HealthCheck>, 4> kHealthCheck
 // alike: the JSON reader (lmf/mission/config_file.cpp), the map archive and
 // with it same_config (global_map_archive.hpp). f(name, field) for each field
 // with its configuration-file name, in the archive's order: a double, bool,
-// int or HealthCheck, and the FrameRegistrationConfig "registration" section,
-// whose own fields visit_fields(section, f) lists. A new field goes here and
+// int or HealthCheck, and the FrameRegistrationConfig "registration" and
+// PlaceRecognitionConfig "place_recognition" sections, whose own fields
+// visit_fields(section, f) lists. A new field goes here and
 // in validate() (its requirement); its archive then needs a new version.
 template <class Config, class F>
   requires std::same_as<std::remove_const_t<Config>, GlobalMapConfig>
@@ -216,6 +222,7 @@ void visit_fields(Config& c, F&& f) {
   f("crossing_margin_m", c.crossing_margin_m);
   f("crossing_max_angle_rad", c.crossing_max_angle_rad);
   f("registration", c.registration);
+  f("place_recognition", c.place_recognition);
 }
 
 // Wall-clock seconds per phase of one fusion (measurement only).
@@ -350,6 +357,30 @@ struct SightingResult {
   std::vector<FusionReport> fused;  // local maps fused because of it
 };
 
+// How a robot joined the map.
+enum class JoinKind {
+  kFirst,       // its first local map defined W (first_robot_defines_world)
+  kKnownFrame,  // GlobalMap::join_robot
+  kSighting,    // a sighting by a joined robot
+  kPlace,       // its local map was recognised in the global map (place_recognition.hpp)
+};
+const char* to_string(JoinKind kind);
+
+struct RobotJoin {
+  JoinKind how = JoinKind::kFirst;
+  std::int64_t seq = 0;  // the local map whose frame the join placed
+  double place_score = 0.0;  // kPlace: the place's score
+};
+
+// The outcomes of the place recognitions tried (one per local map of a robot
+// that had not joined, arriving while another had).
+struct PlaceRecognitionCounts {
+  int placed = 0;
+  int not_found = 0;
+  int ambiguous = 0;
+  int degenerate = 0;
+};
+
 class GlobalMap {
  public:
   // Throws std::invalid_argument for an invalid config.
@@ -396,6 +427,11 @@ class GlobalMap {
   // Robot positions the footprint step remembers (0 when footprint_radius_m is 0).
   std::size_t footprint_positions() const { return footprints_ ? footprints_->size() : 0; }
   const GlobalState& state() const { return state_; }
+  // How the robot joined; nullopt if it has not, or joined before this map was
+  // restored from an archive (these records and the counts are statistics of
+  // this process, not archived).
+  std::optional<RobotJoin> how_joined(int robot_id) const;
+  const PlaceRecognitionCounts& place_recognition_counts() const { return place_counts_; }
 
   // Pre-sizes the covariance buffer (e.g. a server expecting a large map).
   void reserve(Eigen::Index dimension) { state_.reserve(dimension); }
@@ -409,6 +445,18 @@ class GlobalMap {
   enum class Sightings { kResolveAfterEachFusion, kLeaveToCaller };
 
   void join(int robot_id, EntityId frame, std::int64_t seq, Sightings sightings, std::vector<FusionReport>& out);
+  // A robot that has not joined joins where one of its oldest waiting local
+  // maps is recognised in the global map, if one is (place_recognition.hpp),
+  // tried oldest first. Only the oldest 1 + registration.own_recent_maps: a
+  // join at a later one anchors the maps before it backwards along the
+  // robot's own chain of frames, which no registration corrects; the chain
+  // is kept as short as the one the registration already treats as drifting
+  // together (docs/results.md, infinite-corridor: a join at map 55 drew the
+  // first maps tens of metres off).
+  void join_by_place(int robot_id, std::vector<FusionReport>& out);
+  // After the map changed, each robot that has not joined is looked for again:
+  // the map may now hold its place.
+  void retry_places(std::vector<FusionReport>& out);
   void drain(int robot_id, Sightings sightings, std::vector<FusionReport>& out);
   void resolve_sightings(std::vector<FusionReport>& out);
   // Joins the sighted robot if its observer's frame is known; nullopt (and no
@@ -427,6 +475,8 @@ class GlobalMap {
   RobotArrivals arrivals_;
   EnvironmentGraph graph_;
   std::optional<RobotFootprints> footprints_;  // when footprint_radius_m > 0
+  std::map<int, RobotJoin> joins_;
+  PlaceRecognitionCounts place_counts_;
 };
 
 }  // namespace lmf::fusion

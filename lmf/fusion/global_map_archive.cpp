@@ -56,7 +56,9 @@ class GlobalMapArchive {
 //               f64 footprint_radius_m, f64 crossing_margin_m, f64 crossing_max_angle_rad,
 //               registration: u8 enabled, 6 f64 (window_m, window_rad, resolution_m,
 //               min_score, ambiguity_ratio, min_constraint), i32 own_recent_maps,
-//               u8 confirm_pairings
+//               u8 confirm_pairings,
+//               place_recognition: u8 enabled, 2 f64 (resolution_m, min_score),
+//               i32 max_candidates
 //   state       i64 next_id, i64 n, i64 capacity, u64 count + entities
 //               (i64 id, u8 kind, pose, f64 length, u8 has_parent, i64 parent,
 //               i64 offset), then P's lower triangle by columns (column j:
@@ -80,6 +82,7 @@ void GlobalMapArchive::write_config(ArchiveWriter& w, const GlobalMapConfig& c) 
     void operator()(const char*, int v) const { w.i32(v); }
     void operator()(const char*, HealthCheck v) const { w.u8(static_cast<std::uint8_t>(v)); }
     void operator()(const char*, const FrameRegistrationConfig& g) const { visit_fields(g, *this); }
+    void operator()(const char*, const PlaceRecognitionConfig& g) const { visit_fields(g, *this); }
   };
   visit_fields(c, Write{w});
 }
@@ -98,6 +101,7 @@ GlobalMapConfig GlobalMapArchive::read_config(ArchiveReader& r) {
       v = static_cast<HealthCheck>(code);
     }
     void operator()(const char*, FrameRegistrationConfig& g) const { visit_fields(g, *this); }
+    void operator()(const char*, PlaceRecognitionConfig& g) const { visit_fields(g, *this); }
   };
   GlobalMapConfig c;
   visit_fields(c, Read{r});

@@ -46,10 +46,11 @@ namespace lmf::fusion {
 // 5: the map's transient "resolving sightings" flag is no longer stored (it
 // was always false between calls; GlobalMap no longer has one). 6: frame
 // registration (GlobalMapConfig::registration; FusionReport's registration
-// outcome, offset, distance and score; PhaseTimes::registration_s). Older
+// outcome, offset, distance and score; PhaseTimes::registration_s). 8: place
+// recognition (GlobalMapConfig::place_recognition). Older
 // versions are refused by name ("older version"), never read with this layout:
 // a server that finds one starts from its next good snapshot or from empty.
-inline constexpr std::uint32_t kGlobalMapArchiveVersion = 7;
+inline constexpr std::uint32_t kGlobalMapArchiveVersion = 8;
 
 // The binary archive primitives (lmf/io/binary_archive.hpp), under the names
 // the map's archive has always used.

@@ -33,6 +33,24 @@ int RobotArrivals::queued_count() const {
   return static_cast<int>(n);
 }
 
+std::vector<int> RobotArrivals::waiting() const {
+  std::vector<int> out;
+  for (const auto& [id, r] : robots_) {
+    if (!r.joined && !r.queue.empty()) out.push_back(id);
+  }
+  return out;
+}
+
+std::vector<const LocalMapSnapshot*> RobotArrivals::oldest_waiting_maps(int robot_id, int count) const {
+  std::vector<const LocalMapSnapshot*> out;
+  const Robot* r = find(robot_id);
+  if (r == nullptr) return out;
+  for (auto it = r->queue.begin(); it != r->queue.end() && static_cast<int>(out.size()) < count; ++it) {
+    out.push_back(&it->second);
+  }
+  return out;
+}
+
 std::vector<int> RobotArrivals::joined() const {
   std::vector<int> out;
   for (const auto& [id, r] : robots_) {

@@ -57,6 +57,11 @@ class RobotArrivals {
   // A joined robot's current local map and its frame L_r.
   std::pair<std::int64_t, EntityId> current_frame(int robot_id) const;
 
+  // Robots that have not joined and have local maps waiting, ascending.
+  std::vector<int> waiting() const;
+  // The oldest `count` of a robot's waiting local maps, oldest first.
+  std::vector<const LocalMapSnapshot*> oldest_waiting_maps(int robot_id, int count) const;
+
   // The (validated, new) local map waits for its turn.
   void enqueue(const LocalMapSnapshot& snapshot);
 

@@ -16,6 +16,9 @@ void read_config(io::JsonReader& r, fusion::GlobalMapConfig& c) {
     void operator()(const char* name, fusion::FrameRegistrationConfig& g) const {
       if (io::JsonReader* section = r.optional_section(name)) fusion::visit_fields(g, Read{*section});
     }
+    void operator()(const char* name, fusion::PlaceRecognitionConfig& g) const {
+      if (io::JsonReader* section = r.optional_section(name)) fusion::visit_fields(g, Read{*section});
+    }
   };
   fusion::visit_fields(c, Read{r});
 }

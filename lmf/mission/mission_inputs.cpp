@@ -84,8 +84,8 @@ void drop_sightings(MissionInputs& inputs) {
   const std::size_t dropped = inputs.sightings.size();
   inputs.sightings.clear();
   inputs.notes.push_back("no sightings (" + std::to_string(dropped) +
-                         " dropped): the robots after the first join only where a local map of theirs is placed "
-                         "without one");
+                         " dropped): the robots after the first join only by place recognition "
+                         "(global_map.place_recognition.enabled; off by default: their local maps wait)");
 }
 
 MissionInputs load_recordings(std::vector<RecordedLog> logs, int split, const std::filesystem::path& reference,

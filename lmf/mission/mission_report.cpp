@@ -241,11 +241,18 @@ void write_mission_outputs(const std::filesystem::path& out, const OfflineMissio
   report["inputs"] = mission.inputs().description;
   report["input_notes"] = mission.inputs().notes;
   report["map"] = map_counts_json(mission.global_map().counts());
+  const fusion::PlaceRecognitionCounts& places = mission.global_map().place_recognition_counts();
+  report["place_recognition"] = {{"placed", places.placed},
+                                 {"not_found", places.not_found},
+                                 {"ambiguous", places.ambiguous},
+                                 {"degenerate", places.degenerate}};
   json robots = json::array();
   for (const RobotResult& r : result.robots) {
     robots.push_back({{"robot_id", r.robot_id},
                       {"name", r.name},
                       {"joined", r.joined},
+                      {"joined_by", r.join ? json(fusion::to_string(r.join->how)) : json(nullptr)},
+                      {"joined_at_seq", r.join ? json(r.join->seq) : json(nullptr)},
                       {"scans", r.scans},
                       {"local_maps_shipped", r.local_maps_shipped},
                       {"local_maps_fused", r.local_maps_fused},
@@ -359,6 +366,17 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
                   r.scan_timing.max_ms, rs ? std::to_string(rs->ate.position_rmse_m).substr(0, 6).c_str() : "-",
                   rs ? std::to_string(rs->odometry_ate.position_rmse_m).substr(0, 6).c_str() : "-");
     s << line;
+  }
+  for (const RobotResult& r : result.robots) {
+    if (r.join && r.join->how == fusion::JoinKind::kPlace) {
+      s << "  " << r.name << " joined by place recognition at its local map " << r.join->seq << " (score "
+        << std::to_string(r.join->place_score).substr(0, 4) << ")\n";
+    }
+  }
+  const fusion::PlaceRecognitionCounts& places = mission.global_map().place_recognition_counts();
+  if (places.placed + places.not_found + places.ambiguous + places.degenerate > 0) {
+    s << "place recognition: " << places.placed << " placed, " << places.not_found << " not found, "
+      << places.ambiguous << " ambiguous, " << places.degenerate << " degenerate\n";
   }
   for (const RobotResult& r : result.robots) {
     if (r.local_map_consistency.empty()) continue;

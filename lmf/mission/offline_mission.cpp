@@ -105,6 +105,7 @@ MissionResult OfflineMission::run() {
   for (std::size_t i = 0; i < agents_.size(); ++i) {
     RobotResult& r = result_.robots[i];
     r.joined = global_map_.is_joined(r.robot_id);
+    r.join = global_map_.how_joined(r.robot_id);
     r.trajectory = trajectories_.final_trajectory(global_map_, r.robot_id);
     r.scan_timing = timing_stats(r.scan_times_ms);
     r.odometry_model = agents_[i].local_map.odometry_model();

@@ -66,6 +66,7 @@ struct RobotResult {
   int robot_id = 0;
   std::string name;
   bool joined = false;
+  std::optional<fusion::RobotJoin> join;  // how and at which local map it joined
   std::size_t scans = 0;
   std::size_t local_maps_shipped = 0;
   std::size_t local_maps_fused = 0;

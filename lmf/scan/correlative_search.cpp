@@ -26,7 +26,8 @@ class BranchAndBound {
                  const CorrelativeWindow& window, double ratio)
       : field_(field), centre_(centre), window_(window), ratio_(ratio), n_(static_cast<int>(points.size())) {
     const double r = field.resolution_m();
-    half_cells_ = static_cast<int>(std::floor(window.linear_m / r + 1e-9));
+    half_cells_x_ = static_cast<int>(std::floor(window.linear_m / r + 1e-9));
+    half_cells_y_ = static_cast<int>(std::floor(window.linear_y_m.value_or(window.linear_m) / r + 1e-9));
     half_rotations_ = static_cast<int>(std::floor(window.angular_rad / window.angular_step_rad + 1e-9));
     const int rotations = 2 * half_rotations_ + 1;
     cells_.resize(static_cast<std::size_t>(rotations) * points.size());
@@ -50,8 +51,8 @@ class BranchAndBound {
     std::vector<Candidate> roots;
     const int rotations = 2 * half_rotations_ + 1;
     for (int k = 0; k < rotations; ++k) {
-      for (int ox = -half_cells_; ox <= half_cells_; ox += 1 << top) {
-        for (int oy = -half_cells_; oy <= half_cells_; oy += 1 << top) {
+      for (int ox = -half_cells_x_; ox <= half_cells_x_; ox += 1 << top) {
+        for (int oy = -half_cells_y_; oy <= half_cells_y_; oy += 1 << top) {
           roots.push_back({k, ox, oy, score(top, k, ox, oy)});
         }
       }
@@ -99,7 +100,7 @@ class BranchAndBound {
         for (const int dy : {0, half}) {
           const int ox = c.ox + dx;
           const int oy = c.oy + dy;
-          if (ox > half_cells_ || oy > half_cells_) continue;
+          if (ox > half_cells_x_ || oy > half_cells_y_) continue;
           const int s = score(level - 1, c.rotation, ox, oy);
           if (s >= threshold()) children.push_back({c.rotation, ox, oy, s});
         }
@@ -113,7 +114,8 @@ class BranchAndBound {
   CorrelativeWindow window_;
   double ratio_;
   int n_;
-  int half_cells_ = 0;
+  int half_cells_x_ = 0;
+  int half_cells_y_ = 0;
   int half_rotations_ = 0;
   std::vector<Eigen::Vector2i> cells_;  // per rotation, the level-0 cell of each point at the centre translation
   int floor_ = 0;
@@ -200,7 +202,8 @@ std::optional<CorrelativeResult> correlative_search(const LikelihoodField& field
                                                     const std::vector<Eigen::Vector2d>& points, const Pose2& centre,
                                                     const CorrelativeWindow& window, double min_score,
                                                     double contender_ratio) {
-  if (!(window.linear_m >= 0.0) || !(window.angular_rad >= 0.0) || !(window.angular_step_rad > 0.0)) {
+  if (!(window.linear_m >= 0.0) || !(window.linear_y_m.value_or(0.0) >= 0.0) || !(window.angular_rad >= 0.0) ||
+      !(window.angular_step_rad > 0.0)) {
     throw std::invalid_argument("correlative_search: the window must be >= 0 and its angular step > 0");
   }
   if (!(contender_ratio > 0.0 && contender_ratio <= 1.0)) {

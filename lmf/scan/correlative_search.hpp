@@ -78,12 +78,15 @@ class LikelihoodField {
 };
 
 // The grid of poses searched: x = (c.x + i r, c.y + j r, c.φ + k δ) for the
-// centre c, |i r| <= linear_m, |j r| <= linear_m (r the field's resolution),
+// centre c, |i r| <= linear_m, |j r| <= linear_y_m or linear_m (r the field's resolution),
 // |k δ| <= angular_rad, δ = angular_step_rad.
 struct CorrelativeWindow {
   double linear_m = 0.0;
   double angular_rad = 0.0;
   double angular_step_rad = 0.0;
+  // When set, the half-extent in y (m), linear_m then being x's only: a
+  // window shaped like the region searched (a long building).
+  std::optional<double> linear_y_m;
 };
 
 struct CorrelativeMatch {

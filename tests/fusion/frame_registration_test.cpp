@@ -7,25 +7,16 @@
 
 #include <gtest/gtest.h>
 
+#include "fusion/registration_segments.hpp"
 #include "fusion/synthetic_maps.hpp"
 #include "lmf/fusion/global_map.hpp"
 
 namespace lmf::fusion {
 namespace {
 
+using synthetic::in_frame;
+using synthetic::in_world;
 using synthetic::Wall;
-
-std::vector<RegistrationSegment> in_world(const std::vector<Wall>& walls) {
-  std::vector<RegistrationSegment> out;
-  for (const Wall& w : walls) out.push_back({w.x_WS, w.length_m});
-  return out;
-}
-
-std::vector<RegistrationSegment> in_frame(const std::vector<Wall>& walls, const Pose2& x_WL) {
-  std::vector<RegistrationSegment> out;
-  for (const Wall& w : walls) out.push_back({between(x_WL, w.x_WS), w.length_m});
-  return out;
-}
 
 // A room with a pillar of walls off its centre: nothing repeats within the window.
 std::vector<Wall> building() {

@@ -232,10 +232,10 @@ TEST(GlobalMapArchiveTest, BrokenInvariantsAreRejectedEvenWithAGoodChecksum) {
   ArchiveWriter w(payload);
   write_global_map(w, map);
   // The first entity's offset sits after the config (11 f64 + 2 u8 + i32 + 3 f64
-  // + the registration's u8 + 6 f64 + i32 + u8 = 172 bytes), next_id, n, capacity,
-  // count (32) and its id, kind, pose, length, parent flag and parent (58 - 8
-  // bytes): set it to 1.
-  const std::size_t offset_at = 172 + 32 + 50;
+  // + the registration's u8 + 6 f64 + i32 + u8 + place recognition's u8 +
+  // 2 f64 + i32 = 193 bytes), next_id, n, capacity, count (32) and its id,
+  // kind, pose, length, parent flag and parent (58 - 8 bytes): set it to 1.
+  const std::size_t offset_at = 193 + 32 + 50;
   std::int64_t offset = 0;
   std::memcpy(&offset, payload.data() + offset_at, sizeof offset);
   ASSERT_EQ(offset, 0);

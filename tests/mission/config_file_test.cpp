@@ -35,10 +35,13 @@ struct Nudge {
       if (value == v) j[name] = choice;
     }
   }
-  void operator()(const char* name, fusion::FrameRegistrationConfig& g) const {
-    nlohmann::json section = nlohmann::json::object();
-    fusion::visit_fields(g, Nudge{section});
-    j[name] = section;
+  void operator()(const char* name, fusion::FrameRegistrationConfig& g) const { section(name, g); }
+  void operator()(const char* name, fusion::PlaceRecognitionConfig& g) const { section(name, g); }
+  template <class Section>
+  void section(const char* name, Section& g) const {
+    nlohmann::json fields = nlohmann::json::object();
+    fusion::visit_fields(g, Nudge{fields});
+    j[name] = fields;
   }
 };
 
@@ -47,6 +50,7 @@ struct NudgeOne {
   int k = 0;
   int at = 0;
   void operator()(const char*, fusion::FrameRegistrationConfig& g) { fusion::visit_fields(g, *this); }
+  void operator()(const char*, fusion::PlaceRecognitionConfig& g) { fusion::visit_fields(g, *this); }
   template <class T>
   void operator()(const char* name, T& v) {
     if (at++ != k) return;

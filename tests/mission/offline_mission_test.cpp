@@ -103,19 +103,35 @@ TEST(OfflineMission, FusionFrameChecksFollowTheReference) {
   }
 }
 
-// --no-sightings: the first robot defines W; without a sighting, and with no
-// local map of it placed in the global map otherwise, the second never joins,
-// and its local maps wait in the server's queue, not lost.
-TEST(OfflineMission, WithoutSightingsTheOtherRobotsMapsWait) {
+// --no-sightings: the first robot defines W; without a sighting the second
+// joins where one of its local maps is recognised in the global map
+// (place_recognition.hpp, turned on), and with place recognition off (the
+// default) it never joins: its local maps wait in the server's queue, not lost.
+TEST(OfflineMission, WithoutSightingsTheOtherRobotJoinsByPlaceOrWaits) {
   MissionInputs inputs = load_sim_folder(simulated_folder(), SightingNoise{});
   ASSERT_FALSE(inputs.sightings.empty());
   drop_sightings(inputs);
   EXPECT_TRUE(inputs.sightings.empty());
   ASSERT_FALSE(inputs.notes.empty());
   EXPECT_NE(inputs.notes.back().find("no sightings"), std::string::npos) << inputs.notes.back();
-  OfflineMission mission(load_mission_config(std::string(LMF_CONFIG_DIR) + "/sim.json"), inputs);
+  const MissionConfig config = load_mission_config(std::string(LMF_CONFIG_DIR) + "/sim.json");
+  ASSERT_FALSE(config.global_map.place_recognition.enabled);
+  {
+    MissionConfig on = config;
+    on.global_map.place_recognition.enabled = true;
+    OfflineMission mission(on, inputs);
+    const MissionResult result = mission.run();
+    ASSERT_EQ(result.robots.size(), 2U);
+    EXPECT_TRUE(result.robots[0].joined);
+    ASSERT_TRUE(result.robots[1].joined);
+    ASSERT_TRUE(result.robots[1].join.has_value());
+    EXPECT_EQ(result.robots[1].join->how, fusion::JoinKind::kPlace);
+    EXPECT_EQ(result.robots[1].local_maps_fused, result.robots[1].local_maps_shipped);
+    EXPECT_EQ(mission.global_map().queued_count(), 0);
+    EXPECT_EQ(mission.global_map().place_recognition_counts().placed, 1);
+  }
+  OfflineMission mission(config, inputs);
   const MissionResult result = mission.run();
-  ASSERT_EQ(result.robots.size(), 2U);
   EXPECT_TRUE(result.robots[0].joined);
   EXPECT_GT(result.robots[0].local_maps_fused, 0U);
   EXPECT_FALSE(result.robots[1].joined);
