@@ -31,6 +31,10 @@ done
 demo_programs=(lmf-sim lmf-keygen lmf-server lmf-agent lmf-player lmf-monitor lmf-score)
 echo "== building ${demo_programs[*]} (log: $out/build.log)"
 mkdir -p "$out"
+# What this run writes, removed first: a robot that does not join this time
+# must not be scored with the trajectory an earlier run left.
+rm -rf "$out/trajectories" "$out/replay" "$out/logs" "$out/map.svg" "$out/map.json" "$out/report.json" \
+  "$out/trajectory.txt" "$out/timing.svg" "$out/lmf.lcmlog"
 build_start=$(date +%s)
 TARGETS="${demo_programs[*]}" BUILD_DIR=$build "$root/scripts/build.sh" >"$out/build.log" 2>&1 ||
   { tail -30 "$out/build.log"; exit 1; }
