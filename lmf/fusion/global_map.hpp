@@ -372,8 +372,8 @@ struct RobotJoin {
   double place_score = 0.0;  // kPlace: the place's score
 };
 
-// The outcomes of the place recognitions tried (one per local map of a robot
-// that had not joined, arriving while another had).
+// The outcomes of the place recognitions tried (one per waiting local map
+// looked for: when one arrives and after each fusion that changed the map).
 struct PlaceRecognitionCounts {
   int placed = 0;
   int not_found = 0;

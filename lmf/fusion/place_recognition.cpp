@@ -36,9 +36,9 @@ const char* to_string(PlaceOutcome outcome) {
 namespace {
 
 // Bounds on the global search's work for any input: at most kMaxLocalPoints
-// sampled local points (the spacing widens beyond resolution_m past 400 m of
-// walls at 0.2 m) and at most kMaxRotations headings (the step coarsens for a
-// local map reaching beyond kMaxRotations r / 2π: 130 m at 0.2 m).
+// sampled local points (the spacing widens beyond resolution_m past 800 m of
+// walls at 0.4 m) and at most kMaxRotations headings (the step coarsens for a
+// local map reaching beyond kMaxRotations r / 2π: 260 m at 0.4 m).
 constexpr double kMaxLocalPoints = 2048;
 constexpr double kMaxRotations = 4096;
 
@@ -46,7 +46,10 @@ constexpr double kMaxRotations = 4096;
 // up to one cell (the field's σ) from its wall, where its likelihood is
 // exp(−1/2) of the peak's: the search grid's score of a place may be that much
 // below its refined score. The global search keeps what may still refine to
-// min_score, and every peak that may refine to a rival of the best.
+// min_score. Its contenders are the peaks within ambiguity_ratio of the best's
+// grid score: a rival that loses more to the grid than the best does can be
+// missed (the looser ratio kGridLoss · ambiguity_ratio made the search about
+// twice as slow, docs/results.md).
 const double kGridLoss = std::exp(-0.5);
 
 Eigen::Vector3d offset(const Pose2& a, const Pose2& b) {

@@ -39,9 +39,9 @@ struct PlaceRecognitionConfig {
   // ambiguity test cannot see (docs/results.md, "Place recognition").
   bool enabled = false;
   // Cell (m) of the global search's likelihood field, also its σ and the
-  // spacing of the sampled local points: four of the registration's cells, so
-  // a pose of the search grid is within the registration's window (±2 cells)
-  // of the true one.
+  // spacing of the sampled local points: eight of the registration's cells;
+  // each peak is refined within ± two of these cells (0.8 m), inside the
+  // registration's own window (window_m 1.5).
   double resolution_m = 0.4;
   // A place explains at least this fraction of the local map's sampled points
   // (the registration's mean likelihood): most of the local map, two of every
