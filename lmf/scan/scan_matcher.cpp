@@ -110,8 +110,6 @@ void ScanMatcherConfig::validate() const {
   require(std::isfinite(model_noise_m) && model_noise_m >= 0.0, "model_noise_m", model_noise_m, "finite and >= 0");
   require(std::isfinite(model_noise_rad) && model_noise_rad >= 0.0, "model_noise_rad", model_noise_rad,
           "finite and >= 0");
-  require(std::isfinite(model_noise_per_rad) && model_noise_per_rad >= 0.0, "model_noise_per_rad",
-          model_noise_per_rad, "finite and >= 0");
 }
 
 OrientedPoints oriented_points(const LaserScan& scan, const ScanMatcherConfig& config) {
@@ -305,10 +303,9 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
                                  const Pose2& u_hat, const Eigen::Matrix3d& Q_inv, const ScanMatcherConfig& config) {
   const double sigma2 = config.point_sigma_m * config.point_sigma_m;
   const double huber = config.huber_k * config.point_sigma_m;
-  const double turn_noise = config.model_noise_per_rad * std::abs(u_hat.phi);
   const Eigen::Matrix3d C_m =
       Eigen::Vector3d(config.model_noise_m * config.model_noise_m, config.model_noise_m * config.model_noise_m,
-                      config.model_noise_rad * config.model_noise_rad + turn_noise * turn_noise)
+                      config.model_noise_rad * config.model_noise_rad)
           .asDiagonal();
 
   const double prior_k2 = spmap::chi2_threshold(3, config.prior_alpha);

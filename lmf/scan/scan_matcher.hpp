@@ -147,13 +147,10 @@ struct ScanMatcherConfig {
   bool residual_correlation = true;
   // The laser information counts at most this many independent points ...
   double max_independent_points = 20.0;
-  // ... and its covariance widened by this model noise: std of x and y (m), of
-  // the angle (rad), and of the angle per radian turned (a scan taken while
-  // turning is skewed by the turn during the sweep), in quadrature; the turn
-  // term is off by default (docs/results.md, "The match's turn term").
+  // ... and its covariance widened by this model noise: std of x and y (m) and
+  // of the angle (rad), in quadrature.
   double model_noise_m = 0.01;
   double model_noise_rad = 0.003;
-  double model_noise_per_rad = 0.0;
   // The prior is robust (Huber on its Mahalanobis distance d): beyond
   // d² = chi2inv(1 - prior_alpha, 3) its information is scaled by
   // sqrt(chi2inv) / d, so an odometry increment the laser proves wrong pulls

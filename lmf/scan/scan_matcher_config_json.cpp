@@ -33,7 +33,6 @@ void read_scan_matcher_config(io::JsonReader& reader, ScanMatcherConfig& config)
   reader.read("max_independent_points", config.max_independent_points, io::positive());
   reader.read("model_noise_m", config.model_noise_m, io::non_negative());
   reader.read("model_noise_rad", config.model_noise_rad, io::non_negative());
-  reader.read("model_noise_per_rad", config.model_noise_per_rad, io::non_negative());
   reader.read("prior_alpha", config.prior_alpha, io::in_open(0.0, 1.0));
 }
 
