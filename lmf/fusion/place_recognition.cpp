@@ -10,6 +10,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
+#include "lmf/fusion/wall_directions.hpp"
 #include "lmf/scan/correlative_search.hpp"
 
 namespace lmf::fusion {
@@ -98,6 +99,13 @@ PlaceRecognition recognise_place(const std::vector<RegistrationSegment>& local,
   window.linear_y_m = 0.5 * region.sizes().y() + farthest;
   window.angular_step_rad = std::max(r / farthest, 2.0 * std::numbers::pi / kMaxRotations);
   window.angular_rad = std::numbers::pi - 0.5 * window.angular_step_rad;
+  // Only headings at which the local walls parallel enough of the map's to
+  // score what may refine to min_score (wall_directions.hpp).
+  const WallDirections global_directions(global);
+  const double step = window.angular_step_rad;
+  window.heading_searched = [&](double heading) {
+    return parallel_share(local, global_directions, heading, step, r) >= kGridLoss * config.min_score;
+  };
   // Roots of the branch and bound tile the window when one top-level block
   // cannot span it (LikelihoodField::kMaxLevels).
   const int levels = std::min(LikelihoodField::levels_for(std::max(window.linear_m, *window.linear_y_m), r),

@@ -8,7 +8,9 @@
 //  1. a global search: points sampled along the local segments every
 //     `resolution_m` are scored against a likelihood field of all the global
 //     segments at that coarse cell, at every heading (the step moves the
-//     farthest local point by one cell) and every translation that puts the
+//     farthest local point by one cell) at which the local walls parallel
+//     enough of the global ones to reach the search's floor
+//     (wall_directions.hpp), and every translation that puts the
 //     local map over the global one, by the branch and bound of the scan
 //     matcher (lmf/scan/correlative_search.hpp; Hess et al. 2016, §V, the
 //     global constraint search);

@@ -51,6 +51,9 @@ class BranchAndBound {
     std::vector<Candidate> roots;
     const int rotations = 2 * half_rotations_ + 1;
     for (int k = 0; k < rotations; ++k) {
+      if (window_.heading_searched && !window_.heading_searched((k - half_rotations_) * window_.angular_step_rad)) {
+        continue;
+      }
       for (int ox = -half_cells_x_; ox <= half_cells_x_; ox += 1 << top) {
         for (int oy = -half_cells_y_; oy <= half_cells_y_; oy += 1 << top) {
           roots.push_back({k, ox, oy, score(top, k, ox, oy)});

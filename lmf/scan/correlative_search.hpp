@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <vector>
 
@@ -87,6 +88,9 @@ struct CorrelativeWindow {
   // When set, the half-extent in y (m), linear_m then being x's only: a
   // window shaped like the region searched (a long building).
   std::optional<double> linear_y_m;
+  // When set, only the headings k δ (offsets from the centre's) for which it
+  // is true are searched: a caller's necessary condition on the heading.
+  std::function<bool(double)> heading_searched;
 };
 
 struct CorrelativeMatch {

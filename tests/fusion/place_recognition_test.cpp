@@ -10,6 +10,7 @@
 #include "fusion/registration_segments.hpp"
 #include "fusion/synthetic_maps.hpp"
 #include "lmf/fusion/global_map.hpp"
+#include "lmf/fusion/wall_directions.hpp"
 
 namespace lmf::fusion {
 namespace {
@@ -98,6 +99,33 @@ TEST(PlaceRecognitionTest, AnUnmappedRoomIsNotFound) {
 TEST(PlaceRecognitionTest, NothingToSearchIsNotFound) {
   EXPECT_EQ(recognise_place({}, in_world(building()), {}, {}).outcome, PlaceOutcome::kNotFound);
   EXPECT_EQ(recognise_place(in_world(building()), {}, {}, {}).outcome, PlaceOutcome::kNotFound);
+}
+
+// The headings the global search tries (wall_directions.hpp): directions are
+// taken modulo π, and a heading counts a local wall only where a global wall
+// runs within its tolerance.
+TEST(PlaceRecognitionTest, WallDirectionsWrapAroundPiAndGateTheHeadings) {
+  const WallDirections directions({{Pose2(0.0, 0.0, 0.001), 4.0}, {Pose2(3.0, 0.0, M_PI / 2), 4.0}});
+  EXPECT_TRUE(directions.any_within(M_PI - 0.001, 0.01));
+  EXPECT_TRUE(directions.any_within(-M_PI / 2, 0.01));
+  EXPECT_TRUE(directions.any_within(0.02, 0.03));
+  EXPECT_FALSE(directions.any_within(0.02, 0.005));
+  EXPECT_FALSE(directions.any_within(M_PI / 4, 0.2));
+  EXPECT_TRUE(directions.any_within(M_PI / 4, M_PI));
+  EXPECT_FALSE(WallDirections({}).any_within(0.0, M_PI));
+
+  // A local room of 8 m walls (tolerance: the step plus 0.1 rad) and a 0.4 m
+  // stub (turning it by a radian moves its ends by half a cell): everything
+  // lines up at every quarter turn; half-way between, only the stub counts.
+  std::vector<RegistrationSegment> local;
+  for (const Wall& w : synthetic::room(0.0, 0.0, 8.0, 8.0)) local.push_back({w.x_WS, w.length_m});
+  local.push_back({Pose2(1.0, 1.0, 0.3), 0.4});
+  const double step = 0.02;
+  const double cell = 0.4;
+  EXPECT_NEAR(parallel_share(local, directions, 0.0, step, cell), 1.0, 1e-12);
+  EXPECT_NEAR(parallel_share(local, directions, M_PI / 2 + 0.01, step, cell), 1.0, 1e-12);
+  EXPECT_NEAR(parallel_share(local, directions, M_PI / 4, step, cell), 0.4 / 32.4, 1e-12);
+  EXPECT_EQ(parallel_share({}, directions, 0.0, step, cell), 0.0);
 }
 
 TEST(PlaceRecognitionTest, ConfigIsValidated) {
