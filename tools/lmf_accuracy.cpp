@@ -113,8 +113,17 @@ json read_case(const std::string& name, const std::string& dir) {
     }
   }
   // The front end (local maps and scan matches against the reference), over all robots.
-  double lm_nees_sum = 0.0, lm_worst_m = 0.0, lm_worst_rad = 0.0, match_nees_sum = 0.0;
-  long lm_count = 0, match_count = 0, fallbacks = 0;
+  double lm_nees_sum = 0.0, lm_worst_m = 0.0, lm_worst_rad = 0.0, match_nees_sum = 0.0, chain_nees_sum = 0.0;
+  long lm_count = 0, match_count = 0, chain_count = 0, fallbacks = 0;
+  // A robot's {count, mean} at `key` added to a mean over all robots.
+  const auto add_mean = [](const json& robot, const std::string& key, double& sum, long& count) {
+    const double n = number_at(robot, P("/" + key + "/count"));
+    const double mean = number_at(robot, P("/" + key + "/mean"));
+    if (std::isfinite(n) && n > 0 && std::isfinite(mean)) {
+      sum += mean * n;
+      count += static_cast<long>(n);
+    }
+  };
   if (ok) {
     for (const json& r : report.value("robots", json::array())) {
       for (const json& c : r.value("local_map_consistency", json::array())) {
@@ -123,13 +132,8 @@ json read_case(const std::string& name, const std::string& dir) {
         lm_worst_rad = std::max(lm_worst_rad, c.value("error_rad", 0.0));
         ++lm_count;
       }
-      const double count = number_at(r, P("/match_nees/count"));
-      const long n = std::isfinite(count) ? static_cast<long>(count) : 0;
-      const double mean = number_at(r, P("/match_nees/mean"));
-      if (n > 0 && std::isfinite(mean)) {
-        match_nees_sum += mean * static_cast<double>(n);
-        match_count += n;
-      }
+      add_mean(r, "match_nees", match_nees_sum, match_count);
+      add_mean(r, "match_chain_nees", chain_nees_sum, chain_count);
       fallbacks += r.value("match_fallbacks", 0L);
     }
   }
@@ -138,6 +142,7 @@ json read_case(const std::string& name, const std::string& dir) {
   row["local_map_worst_m"] = nullable(lm_count > 0 ? lm_worst_m : none);
   row["local_map_worst_deg"] = nullable(lm_count > 0 ? lm_worst_rad * 180.0 / std::numbers::pi : none);
   row["match_nees_mean"] = nullable(match_count > 0 ? match_nees_sum / static_cast<double>(match_count) : none);
+  row["match_chain_nees_mean"] = nullable(chain_count > 0 ? chain_nees_sum / static_cast<double>(chain_count) : none);
   row["match_fallbacks"] = fallbacks;
   row["odometry_ate_m"] = nullable(odo_n > 0 ? std::sqrt(odo2 / odo_n) : std::nan(""));
   row["robots"] = robots;
@@ -201,6 +206,7 @@ const std::vector<Column>& columns() {
       {"LM NEES", [](const json& r) { return cell(r["local_map_nees_mean"], "%.1f"); }},
       {"LM worst (m / deg)", [](const json& r) { return pair_cell(r["local_map_worst_m"], r["local_map_worst_deg"]); }},
       {"match NEES", [](const json& r) { return cell(r["match_nees_mean"], "%.1f"); }},
+      {"match NEES 10", [](const json& r) { return cell(r["match_chain_nees_mean"], "%.1f"); }},
       {"fallbacks", [](const json& r) { return std::to_string(r["match_fallbacks"].get<long>()); }},
       {"P PSD", [](const json& r) { return std::string(r["psd_throughout"].get<bool>() ? "yes" : "NO"); }},
       {"odom ATE m", [](const json& r) { return cell(r["odometry_ate_m"], "%.2f"); }},
@@ -289,7 +295,9 @@ int main(int argc, char** argv) {
     notes.emplace_back(
         "LM NEES: mean end-pose NEES of the shipped local maps against the reference (3 if consistent); LM worst: "
         "the largest local-map end error; match NEES: mean NEES of the scan-matched motions against the "
-        "reference motion (3 if consistent); fallbacks: scans whose match failed (odometry alone)");
+        "reference motion (3 if consistent); match NEES 10: the same over chains of 10 consecutive matches, where "
+        "an error of one scan's own (or of the reference's at that scan) cancels as it does along a local map; "
+        "fallbacks: scans whose match failed (odometry alone)");
     notes.emplace_back(
         "relocated / refused / fusions: fusions whose frame the registration against the nearby map moved; "
         "whose registration disagreed with the predicted frame but was ambiguous or degenerate (nothing moved); "

@@ -3,7 +3,9 @@
 // keeps them (scan_history.hpp), scored against a reference trajectory:
 // increment errors of the odometry and of the match, and the consistency of
 // both (NEES of the increment perturbation, mean 3 when the covariance is
-// right), also of the laser alone in the directions it constrains.
+// right), also of the laser alone in the directions it constrains, and of
+// chains of consecutive matches (lmf/eval/increment_chain.hpp), in which an
+// error of one scan's own cancels.
 #include <algorithm>
 #include <ctime>
 #include <cmath>
@@ -20,6 +22,7 @@
 #include <boost/math/distributions/chi_squared.hpp>
 #include <boost/program_options.hpp>
 
+#include "lmf/eval/increment_chain.hpp"
 #include "lmf/eval/match_closure.hpp"
 #include "lmf/io/carmen.hpp"
 #include "lmf/local_map/local_map_config_json.hpp"
@@ -152,6 +155,10 @@ int run_closure(const Options& o, const lmf::io::CarmenLog& log, const std::vect
   return 0;
 }
 
+// The chain lengths the report scores (lmf/eval/increment_chain.hpp): one
+// step, and about 5 m and 15 m of travel at the datasets' half-metre spacing.
+constexpr int kChainLengths[] = {1, 10, 30};
+
 int run(const Options& o) {
   if (o.reference_file.empty() && !o.closure) {
     throw std::invalid_argument("--gt is required (only --closure runs without a reference)");
@@ -172,6 +179,8 @@ int run(const Options& o) {
   std::vector<double> micros;
   std::vector<double> laser_nees;  // e ᵀ Λ' e / rank(Λ'): 1 on average when Λ' is right
   int failed = 0;
+  // Every increment's match (std::nullopt where it fell back) and its reference, for the chains.
+  std::vector<std::optional<lmf::eval::RelativePose>> matches(log.scans.size());
   lmf::ScanHistory history(matching);
   history.add(log.scans.front(), lmf::Pose2(), false);
   for (std::size_t k = 1; k < log.scans.size(); ++k) {
@@ -185,6 +194,7 @@ int run(const Options& o) {
     const std::optional<lmf::ScanMatch> m =
         lmf::match_scans(history.reference(), lmf::scan_points_by_kind(b, matching), u, Q, matching);
     micros.push_back(thread_cpu_micros() - t0);
+    if (m) matches[k] = lmf::eval::RelativePose{m->x_AB, m->covariance};
     // As LocalMap::process_scan: the history goes on from the match, restarts after the odometry.
     history.add(b, m ? m->x_AB : u, m.has_value());
     if (!m) {
@@ -224,6 +234,21 @@ int run(const Options& o) {
   print("match", matched, chi2_95);
   std::printf("laser alone (e' L' e / rank L', 1 when L' is right): mean %.2f, median %.2f\n", mean(laser_nees),
               quantile(laser_nees, 0.5));
+  std::vector<std::optional<lmf::Pose2>> reference_poses;
+  for (const lmf::StampedPose& p : reference) reference_poses.push_back(p.pose);
+  for (const int n : kChainLengths) {
+    Errors chained;
+    for (const lmf::eval::ChainError& e : lmf::eval::chain_errors(matches, reference_poses, n)) {
+      chained.translation_m.push_back(e.translation_m);
+      chained.rotation_rad.push_back(e.rotation_rad);
+      chained.nees.push_back(e.nees);
+    }
+    char name[32];
+    std::snprintf(name, sizeof name, "chain %d", n);
+    print(name, chained, chi2_95);
+  }
+  std::printf("(chain n: n consecutive matches composed, their covariances propagated as independent, against the\n"
+              " reference over the same n scans; an error of one scan's own cancels in a chain, a drift does not)\n");
   std::printf("CPU time per match (search + refinement; the history's reference is built after each scan): p50 %.0f us, p99 %.0f us, max %.0f us\n",
               quantile(micros, 0.5), quantile(micros, 0.99), quantile(micros, 1.0));
   return 0;
@@ -238,7 +263,8 @@ int main(int argc, char** argv) {
       "step 1 with local_map.scan_matching: search window around the odometry increment, which is also\n"
       "the prior) and score the increments of\n"
       "the odometry and of the matches against the reference: RMS errors, NEES (3 when the\n"
-      "covariance is right) and the share inside its 95 % bound, and the time per match.\nOptions");
+      "covariance is right) and the share inside its 95 % bound, also over chains of 10 and 30\n"
+      "consecutive matches (where an error of one scan's own cancels), and the time per match.\nOptions");
   options.add_options()("help,h", "print this help")(
       "log", po::value(&o.log_file)->required(), "CARMEN log (plain or .gz)")(
       "gt", po::value(&o.reference_file),

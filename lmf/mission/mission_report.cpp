@@ -264,7 +264,11 @@ void write_mission_outputs(const std::filesystem::path& out, const OfflineMissio
                       {"local_map_consistency", consistency_json(r.local_map_consistency)},
                       {"scan_matches", r.scan_matches},
                       {"match_fallbacks", r.match_fallbacks},
-                      {"match_nees", {{"count", r.match_nees.size()}, {"mean", mean_or_null(r.match_nees)}}}});
+                      {"match_nees", {{"count", r.match_nees.size()}, {"mean", mean_or_null(r.match_nees)}}},
+                      {"match_chain_nees",
+                       {{"steps", kMatchChainSteps},
+                        {"count", r.match_chain_nees.size()},
+                        {"mean", mean_or_null(r.match_chain_nees)}}}});
   }
   report["robots"] = robots;
   report["fusion_timing"] = timing_json(result.fusion_timing);
@@ -403,6 +407,11 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
     if (!r.match_nees.empty()) {
       std::snprintf(line, sizeof line, "; match NEES mean %.1f (3 if consistent) over %zu matches with a reference",
                     mean_or_null(r.match_nees).get<double>(), r.match_nees.size());
+      s << line;
+    }
+    if (!r.match_chain_nees.empty()) {
+      std::snprintf(line, sizeof line, "; over chains of %d matches %.1f (%zu chains)", kMatchChainSteps,
+                    mean_or_null(r.match_chain_nees).get<double>(), r.match_chain_nees.size());
       s << line;
     }
     s << "\n";

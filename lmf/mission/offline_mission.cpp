@@ -58,7 +58,7 @@ OfflineMission::OfflineMission(MissionConfig config, MissionInputs inputs)
   }
   agents_.reserve(inputs_.robots.size());
   for (RobotLog& log : inputs_.robots) {
-    agents_.push_back(Agent{&log, LocalMap(config_.local_map, log.robot_id), 0});
+    agents_.push_back(Agent{&log, LocalMap(config_.local_map, log.robot_id), 0, {}, {}});
     RobotResult r;
     r.robot_id = log.robot_id;
     r.name = log.name;
@@ -110,6 +110,10 @@ MissionResult OfflineMission::run() {
     r.scan_timing = timing_stats(r.scan_times_ms);
     r.odometry_model = agents_[i].local_map.odometry_model();
     r.odometry_learning = agents_[i].local_map.odometry_learning_stats();
+    for (const eval::ChainError& e :
+         eval::chain_errors(agents_[i].matched_steps, agents_[i].reference_poses, kMatchChainSteps)) {
+      r.match_chain_nees.push_back(e.nees);
+    }
   }
   return result_;
 }
@@ -124,6 +128,10 @@ void OfflineMission::process_scan(Agent& agent, RobotResult& result) {
   if (report.scan_matched && agent.next_scan >= 2) {
     check_match(report, agent.log->scans[agent.next_scan - 2].utime, scan.utime, result);
   }
+  agent.matched_steps.push_back(report.scan_matched ? std::optional<eval::RelativePose>(eval::RelativePose{
+                                                          report.scan_match_increment, report.scan_match_covariance})
+                                                    : std::nullopt);
+  agent.reference_poses.push_back(reference_pose(result.robot_id, scan.utime));
   ++result.scans;
   result.segments_seen_through += static_cast<std::size_t>(report.segments_seen_through);
   if (!report.covariance_health.ok() && result.covariance_always_ok) {

@@ -14,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include "lmf/eval/increment_chain.hpp"
 #include "lmf/fusion/global_map.hpp"
 #include "lmf/geometry/stamped_pose.hpp"
 #include "lmf/local_map/local_map.hpp"
@@ -62,6 +63,11 @@ struct FusionFrameCheck {
   double after_rad = 0.0;
 };
 
+// The steps of the match chains scored per robot (RobotResult::match_chain_nees):
+// about 5 m of travel at the half-metre spacing of laser logs, a few times the
+// reach of one scan's own error (the last four scans the matcher keeps).
+inline constexpr int kMatchChainSteps = 10;
+
 struct RobotResult {
   int robot_id = 0;
   std::string name;
@@ -80,6 +86,10 @@ struct RobotResult {
   std::size_t scan_matches = 0;         // scans whose motion came from the scan match
   std::size_t match_fallbacks = 0;      // scans whose match was tried and failed (odometry alone)
   std::vector<double> match_nees;       // per match with a reference: NEES of x_AB with its covariance (3 dof)
+  // Per chain of kMatchChainSteps consecutive matches with a reference at both
+  // ends: NEES of the composed increments (lmf/eval/increment_chain.hpp), where
+  // an error of one scan's own cancels and a drift does not.
+  std::vector<double> match_chain_nees;
   OdometryErrorModel odometry_model;    // the agent's learned model at the end
   OdometryLearningStats odometry_learning;
 };
@@ -117,6 +127,10 @@ class OfflineMission {
     RobotLog* log = nullptr;
     LocalMap local_map;
     std::size_t next_scan = 0;
+    // Per scan k so far: the match's x_{k−1,k} (std::nullopt where there was
+    // none) and the reference pose, for RobotResult::match_chain_nees.
+    std::vector<std::optional<eval::RelativePose>> matched_steps;
+    std::vector<std::optional<Pose2>> reference_poses;
   };
 
   void process_scan(Agent& agent, RobotResult& result);
