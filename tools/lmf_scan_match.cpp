@@ -238,17 +238,24 @@ int run(const Options& o) {
   for (const lmf::StampedPose& p : reference) reference_poses.push_back(p.pose);
   for (const int n : kChainLengths) {
     Errors chained;
+    Eigen::Vector3d axis_nees_sum = Eigen::Vector3d::Zero();
     for (const lmf::eval::ChainError& e : lmf::eval::chain_errors(matches, reference_poses, n)) {
       chained.translation_m.push_back(e.translation_m);
       chained.rotation_rad.push_back(e.rotation_rad);
       chained.nees.push_back(e.nees);
+      axis_nees_sum += e.axis_nees;
     }
     char name[32];
     std::snprintf(name, sizeof name, "chain %d", n);
     print(name, chained, chi2_95);
+    if (!chained.nees.empty()) {
+      const Eigen::Vector3d axis = axis_nees_sum / static_cast<double>(chained.nees.size());
+      std::printf("  per axis (1 when right): along %.2f, across %.2f, heading %.2f\n", axis(0), axis(1), axis(2));
+    }
   }
   std::printf("(chain n: n consecutive matches composed, their covariances propagated as independent, against the\n"
-              " reference over the same n scans; an error of one scan's own cancels in a chain, a drift does not)\n");
+              " reference over the same n scans; an error of one scan's own cancels in a chain, a drift does not;\n"
+              " per axis: the mean of p_i^2 / var_i along and across the chain's last heading, and of its heading)\n");
   std::printf("CPU time per match (search + refinement; the history's reference is built after each scan): p50 %.0f us, p99 %.0f us, max %.0f us\n",
               quantile(micros, 0.5), quantile(micros, 0.99), quantile(micros, 1.0));
   return 0;

@@ -50,7 +50,9 @@ std::vector<ChainError> chain_errors(const std::vector<std::optional<RelativePos
     if (!complete) continue;
     const Pose2 p = between(chain->x, between(*reference[k], *reference[k + length]));
     const Eigen::Vector3d e(p.x, p.y, wrap_angle(p.phi));
-    out.push_back({std::hypot(p.x, p.y), std::abs(e(2)), e.dot(chain->covariance.ldlt().solve(e))});
+    const Eigen::Matrix3d& C = chain->covariance;
+    out.push_back({std::hypot(p.x, p.y), std::abs(e(2)), e.dot(C.ldlt().solve(e)),
+                   e.cwiseProduct(e).cwiseQuotient(C.diagonal())});
   }
   return out;
 }

@@ -12,6 +12,8 @@
 #include <optional>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "lmf/eval/match_closure.hpp"
 #include "lmf/geometry/pose2.hpp"
 
@@ -25,6 +27,11 @@ struct ChainError {
   double translation_m = 0.0;  // |(x, y)| of the error p, truth = x ⊕ p
   double rotation_rad = 0.0;   // |φ| of p
   double nees = 0.0;           // pᵀ Σ⁻¹ p: χ²(3) when the covariance is right
+  // p_i² / Σ_ii for x, y (along and across the heading of the chain's last
+  // pose, the frame of p) and φ:
+  // χ²(1) each when that axis's variance is right, so a mean above 1 names
+  // the axis the covariance understates.
+  Eigen::Vector3d axis_nees = Eigen::Vector3d::Zero();
 };
 
 // steps[k] is x_{k−1,k} (steps[0] is not used), std::nullopt where there is

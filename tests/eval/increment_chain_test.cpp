@@ -62,6 +62,7 @@ TEST(IncrementChain, IndependentStepErrorsGiveConsistentChains) {
   const std::vector<Pose2> truth = path();
   const Eigen::Matrix3d P = covariance(0.02, 0.01, 0.004, 0.3);
   double sum1 = 0.0, sum10 = 0.0;
+  Eigen::Vector3d axis_sum10 = Eigen::Vector3d::Zero();
   int count1 = 0, count10 = 0;
   for (int run = 0; run < 200; ++run) {
     std::vector<std::optional<RelativePose>> steps(truth.size());
@@ -72,12 +73,42 @@ TEST(IncrementChain, IndependentStepErrorsGiveConsistentChains) {
       steps[k] = RelativePose{measured, P};
     }
     for (const ChainError& e : chain_errors(steps, as_reference(truth), 1)) sum1 += e.nees, ++count1;
-    for (const ChainError& e : chain_errors(steps, as_reference(truth), 10)) sum10 += e.nees, ++count10;
+    for (const ChainError& e : chain_errors(steps, as_reference(truth), 10)) {
+      sum10 += e.nees;
+      axis_sum10 += e.axis_nees;
+      ++count10;
+    }
   }
   EXPECT_EQ(count1, 200 * 39);
   EXPECT_EQ(count10, 200 * 30);
   EXPECT_NEAR(sum1 / count1, 3.0, 0.15);
   EXPECT_NEAR(sum10 / count10, 3.0, 0.3);
+  // Each axis alone is χ²(1): its mean is 1.
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(axis_sum10(i) / count10, 1.0, 0.15) << i;
+}
+
+// A covariance that understates one axis shows in that axis's NEES alone.
+TEST(IncrementChain, AnUnderstatedAxisShowsInItsOwnNees) {
+  const std::vector<Pose2> truth = path();
+  const Eigen::Matrix3d P = covariance(0.02, 0.01, 0.004, 0.0);
+  Eigen::Matrix3d claimed = P;
+  claimed(2, 2) /= 9.0;  // the heading's σ claimed three times too small
+  Eigen::Vector3d axis_sum = Eigen::Vector3d::Zero();
+  int count = 0;
+  for (int run = 0; run < 200; ++run) {
+    std::vector<std::optional<RelativePose>> steps(truth.size());
+    for (std::size_t k = 1; k < truth.size(); ++k) {
+      const Pose2 measured = lmf::compose(between(truth[k - 1], truth[k]), inverse(perturbed(Pose2(), P)));
+      steps[k] = RelativePose{measured, claimed};
+    }
+    for (const ChainError& e : chain_errors(steps, as_reference(truth), 1)) {
+      axis_sum += e.axis_nees;
+      ++count;
+    }
+  }
+  EXPECT_NEAR(axis_sum(0) / count, 1.0, 0.1);
+  EXPECT_NEAR(axis_sum(1) / count, 1.0, 0.1);
+  EXPECT_NEAR(axis_sum(2) / count, 9.0, 0.9);
 }
 
 // Steps measured between poses that each carry their own error (x_{k−1,k}
