@@ -51,7 +51,9 @@ std::vector<ChainError> chain_errors(const std::vector<std::optional<RelativePos
     const Pose2 p = between(chain->x, between(*reference[k], *reference[k + length]));
     const Eigen::Vector3d e(p.x, p.y, wrap_angle(p.phi));
     const Eigen::Matrix3d& C = chain->covariance;
-    out.push_back({std::hypot(p.x, p.y), std::abs(e(2)), e.dot(C.ldlt().solve(e)),
+    const Eigen::LLT<Eigen::Matrix3d> llt(C);
+    if (llt.info() != Eigen::Success || C.diagonal().minCoeff() <= 0.0) continue;  // no NEES without one
+    out.push_back({std::hypot(p.x, p.y), std::abs(e(2)), e.dot(llt.solve(e)),
                    e.cwiseProduct(e).cwiseQuotient(C.diagonal())});
   }
   return out;

@@ -37,7 +37,8 @@ struct ChainError {
 // steps[k] is x_{k−1,k} (steps[0] is not used), std::nullopt where there is
 // none (a failed match); reference[k] is scan k's reference pose, std::nullopt
 // where there is none. One chain of n >= 1 steps per start k for which all n
-// steps and both ends' references exist, in order of k.
+// steps and both ends' references exist and whose covariance is positive
+// definite, in order of k.
 std::vector<ChainError> chain_errors(const std::vector<std::optional<RelativePose>>& steps,
                                      const std::vector<std::optional<Pose2>>& reference, int n);
 

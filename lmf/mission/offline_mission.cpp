@@ -110,6 +110,10 @@ MissionResult OfflineMission::run() {
     r.scan_timing = timing_stats(r.scan_times_ms);
     r.odometry_model = agents_[i].local_map.odometry_model();
     r.odometry_learning = agents_[i].local_map.odometry_learning_stats();
+    // Single matches are chains of one.
+    for (const eval::ChainError& e : eval::chain_errors(agents_[i].matched_steps, agents_[i].reference_poses, 1)) {
+      r.match_nees.push_back(e.nees);
+    }
     for (const eval::ChainError& e :
          eval::chain_errors(agents_[i].matched_steps, agents_[i].reference_poses, kMatchChainSteps)) {
       r.match_chain_nees.push_back(e.nees);
@@ -125,9 +129,6 @@ void OfflineMission::process_scan(Agent& agent, RobotResult& result) {
   const ScanReport report = agent.local_map.process_scan(scan);
   result.scan_times_ms.push_back(elapsed_ms(start));
   if (report.scan_match_tried) ++(report.scan_matched ? result.scan_matches : result.match_fallbacks);
-  if (report.scan_matched && agent.next_scan >= 2) {
-    check_match(report, agent.log->scans[agent.next_scan - 2].utime, scan.utime, result);
-  }
   agent.matched_steps.push_back(report.scan_matched ? std::optional<eval::RelativePose>(eval::RelativePose{
                                                           report.scan_match_increment, report.scan_match_covariance})
                                                     : std::nullopt);
@@ -166,16 +167,6 @@ std::optional<Pose2> OfflineMission::reference_pose(int robot_id, std::int64_t u
                                    [](const StampedPose& p, std::int64_t t) { return p.utime < t; });
   if (it == ref->second.end() || it->utime != utime) return std::nullopt;
   return it->pose;
-}
-
-void OfflineMission::check_match(const ScanReport& report, std::int64_t previous_utime, std::int64_t utime,
-                                 RobotResult& result) const {
-  const std::optional<Pose2> before = reference_pose(result.robot_id, previous_utime);
-  const std::optional<Pose2> after = reference_pose(result.robot_id, utime);
-  if (!before || !after) return;
-  const std::optional<double> nees =
-      pose_nees(report.scan_match_increment, report.scan_match_covariance, between(*before, *after));
-  if (nees) result.match_nees.push_back(*nees);
 }
 
 void OfflineMission::check_consistency(const LocalMapSnapshot& snapshot, RobotResult& result) const {

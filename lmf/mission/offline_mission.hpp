@@ -137,9 +137,6 @@ class OfflineMission {
   void ship(Agent& agent, RobotResult& result);
   void check_consistency(const LocalMapSnapshot& snapshot, RobotResult& result) const;
   void check_fusion_frame(const fusion::FusionReport& report);
-  // The matched motion of a scan against the reference motion from the scan before.
-  void check_match(const ScanReport& report, std::int64_t previous_utime, std::int64_t utime,
-                   RobotResult& result) const;
   // The reference pose of a robot at a scan time (nullopt without one).
   std::optional<Pose2> reference_pose(int robot_id, std::int64_t utime) const;
   void record(const std::vector<fusion::FusionReport>& reports);
