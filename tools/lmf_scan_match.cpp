@@ -1,4 +1,4 @@
-// lmf-scan-match: the scan matcher of the local map's step 1 (scan_matcher.hpp)
+// lmf-scan-match: the front end's registration (escalating_registration.hpp)
 // on every scan of a CARMEN log, against the recent scans as the local map
 // keeps them (scan_history.hpp), scored against a reference trajectory:
 // increment errors of the odometry and of the match, and the consistency of
@@ -27,6 +27,7 @@
 #include "lmf/io/carmen.hpp"
 #include "lmf/local_map/local_map_config_json.hpp"
 #include "lmf/local_map/local_map_measurements.hpp"
+#include "lmf/front_end/escalating_registration.hpp"
 #include "lmf/front_end/scan_history.hpp"
 #include "lmf/scan/scan_matcher.hpp"
 #include "tools/tool_support.hpp"
@@ -192,7 +193,7 @@ int run(const Options& o) {
     odometry.add(u, Q, truth);
     const double t0 = thread_cpu_micros();
     const std::optional<lmf::ScanMatch> m =
-        lmf::match_scans(history.reference(), lmf::scan_points_by_kind(b, matching), u, Q, matching);
+        lmf::register_escalating(history.reference(), lmf::scan_points_by_kind(b, matching), u, Q, matching).match;
     micros.push_back(thread_cpu_micros() - t0);
     if (m) matches[k] = lmf::eval::RelativePose{m->x_AB, m->covariance};
     // As LocalMap::process_scan: the history goes on from the match, restarts after the odometry.

@@ -26,13 +26,17 @@ RegisteredScan FrontEnd::register_scan(const LaserScan& scan) {
   // 1. The motion prior.
   const std::optional<MotionPrior::Prediction> prior = motion_prior_.predict(scan.utime, scan.odometry);
   // 2. Registration against the local submap, the prior as the centre of the
-  //    search window and as the refinement's prior (Q is singular only for a
+  //    search window and as the refinement's prior, the window escalating
+  //    when the motion did more than it holds (Q is singular only for a
   //    standing robot with zero noise floors: no prior, no registration).
   if (prior && matching_.enabled && !local_submap_.empty()) {
     out.registration_tried = true;
     if (Eigen::LLT<Eigen::Matrix3d>(prior->motion.Q).info() == Eigen::Success) {
-      out.registration = match_scans(local_submap_.reference(), scan_points_by_kind(scan, matching_),
-                                     prior->motion.u, prior->motion.Q, matching_);
+      Registration registration = register_escalating(local_submap_.reference(), scan_points_by_kind(scan, matching_),
+                                                      prior->motion.u, prior->motion.Q, matching_);
+      out.registration = std::move(registration.match);
+      out.registration_escalated = registration.escalated;
+      out.escalated_registration = registration.escalated_match;
     }
   }
   // 3. The motion: the registration's, or the prior's where there was none.

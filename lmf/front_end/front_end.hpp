@@ -4,8 +4,10 @@
 // own file:
 //   1. the motion prior (motion_prior.hpp): odometry corrected by the learned
 //      odometry model, or constant velocity;
-//   2. registration (scan_matcher.hpp): the scan against the local submap,
-//      a correlative search around the prior and a refinement with the prior;
+//   2. registration (escalating_registration.hpp): the scan against the local
+//      submap, a correlative search around the prior, escalating to a wider
+//      window when the motion did more than it holds, and a refinement with
+//      the prior;
 //   3. the motion: the registration's where it succeeded; the prior's where
 //      it failed, claiming no more than the search window (σ = window / 3);
 //   4. the prior learns from what the laser measured;
@@ -17,6 +19,7 @@
 #include <cstdint>
 #include <optional>
 
+#include "lmf/front_end/escalating_registration.hpp"
 #include "lmf/front_end/motion_prior.hpp"
 #include "lmf/front_end/odometry_model.hpp"
 #include "lmf/front_end/scan_history.hpp"
@@ -32,6 +35,8 @@ struct RegisteredScan {
   std::optional<MotionIncrement> motion;
   bool registration_tried = false;
   std::optional<ScanMatch> registration;  // when it succeeded: motion is its x_AB
+  bool registration_escalated = false;    // the search escalated (escalating_registration.hpp) ...
+  bool escalated_registration = false;    // ... and its wider window's match is the registration
   double odometry_learning_weight = 0.0;  // the increment's robust weight in the odometry model (0: not learned from)
 };
 

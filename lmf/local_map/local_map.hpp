@@ -62,6 +62,10 @@ struct ScanReport {
   // was matched against the recent ones and the prediction used the match.
   bool scan_match_tried = false;
   bool scan_matched = false;
+  // The search escalated to its wider window (escalating_registration.hpp) ...
+  bool scan_match_escalated = false;
+  // ... and the match is the wider window's.
+  bool scan_match_from_escalation = false;
   int scan_match_points = 0;  // points matched (when scan_matched)
   // The matched motion from the previous scan, x_AB, and its covariance (when scan_matched).
   Pose2 scan_match_increment;

@@ -227,4 +227,15 @@ std::optional<CorrelativeResult> correlative_search(const LikelihoodField& field
   return result;
 }
 
+bool on_window_edge(const Pose2& x, const Pose2& centre, const CorrelativeWindow& window, double resolution_m) {
+  // The grid index of an offset along one axis, against the outermost index.
+  const auto at_edge = [](double offset, double half_width, double step) {
+    const int outermost = static_cast<int>(std::floor(half_width / step + 1e-9));
+    return outermost > 0 && std::lround(std::abs(offset) / step) >= outermost;
+  };
+  return at_edge(x.x - centre.x, window.linear_m, resolution_m) ||
+         at_edge(x.y - centre.y, window.linear_y_m.value_or(window.linear_m), resolution_m) ||
+         at_edge(wrap_angle(x.phi - centre.phi), window.angular_rad, window.angular_step_rad);
+}
+
 }  // namespace lmf

@@ -115,4 +115,10 @@ std::optional<CorrelativeResult> correlative_search(const LikelihoodField& field
                                                     const CorrelativeWindow& window, double min_score,
                                                     double contender_ratio = 1.0);
 
+// Whether x, a pose of the window's grid around centre (the field's cell
+// resolution_m), lies on the grid's outermost ring in some axis: a best pose
+// there may be the flank of a peak that lies beyond the window. An axis the
+// window does not search (half-width below one cell or step) has no edge.
+bool on_window_edge(const Pose2& x, const Pose2& centre, const CorrelativeWindow& window, double resolution_m);
+
 }  // namespace lmf

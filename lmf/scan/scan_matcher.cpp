@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -76,8 +77,8 @@ void ScanMatcherConfig::validate() const {
           "in (0, 1]");
   require(std::isfinite(search_window_m) && search_window_m >= 0.0 && search_window_m <= 5.0, "search_window_m",
           search_window_m, "finite and in [0, 5]");
-  require(std::isfinite(search_window_rad) && search_window_rad >= 0.0 && search_window_rad <= 1.0,
-          "search_window_rad", search_window_rad, "in [0, 1]");
+  require(std::isfinite(search_window_rad) && search_window_rad >= 0.0 && search_window_rad <= std::numbers::pi,
+          "search_window_rad", search_window_rad, "in [0, pi]");
   require(std::isfinite(search_resolution_m) && search_resolution_m >= 0.01, "search_resolution_m",
           search_resolution_m, "finite and >= 0.01");
   require(search_window_m / search_resolution_m <= 60.0, "search_window_m", search_window_m,
@@ -527,6 +528,7 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
   }
   refined->match.search_score = best->score;
   refined->match.search_pose = best->x;
+  refined->match.search_at_window_edge = on_window_edge(best->x, u_hat, window, resolution);
   return refined->match;
 }
 
@@ -562,6 +564,7 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const ScanPoints& B
     structure->objects_moving = true;
     structure->search_score = with_objects->search_score;
     structure->search_pose = with_objects->search_pose;
+    structure->search_at_window_edge = with_objects->search_at_window_edge;
     return structure;
   }
   with_objects->static_x_AB = structure->x_AB;

@@ -246,6 +246,9 @@ struct ScanMatch {
   double rms_m = 0.0;            // RMS point-to-line distance of the matched points
   double search_score = 0.0;     // the correlative search's best score (mean likelihood, [0, 1])
   Pose2 search_pose;             // ... and its pose
+  // The search's best pose lies on the outermost ring of its window
+  // (on_window_edge): the motion may have done more than the window holds.
+  bool search_at_window_edge = false;
   // The overload on ScanPoints only: the small foreground objects disagreed
   // with the rest of the scene (or made the match fail), so this match is
   // without them.

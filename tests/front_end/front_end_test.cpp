@@ -8,20 +8,10 @@
 
 #include <gtest/gtest.h>
 
-#include "scan/synthetic_scan.hpp"
+#include "front_end/room_world.hpp"
 
 namespace lmf {
 namespace {
-
-// A closed 10 m x 6 m room with a pillar: every direction constrained.
-testing::SyntheticWorld room() {
-  testing::SyntheticWorld w;
-  const Eigen::Vector2d c[4] = {{-3, -3}, {7, -3}, {7, 3}, {-3, 3}};
-  for (int i = 0; i < 4; ++i) w.walls.push_back({c[i], c[(i + 1) % 4]});
-  w.walls.push_back({{2.0, 1.0}, {2.5, 1.0}});
-  w.walls.push_back({{2.5, 1.0}, {2.5, 1.6}});
-  return w;
-}
 
 MotionPriorConfig config() {
   MotionPriorConfig c;
@@ -30,7 +20,7 @@ MotionPriorConfig config() {
 }
 
 LaserScan scan_at(const Pose2& truth, const Pose2& odometry, int64_t utime) {
-  LaserScan scan = testing::make_scan(room(), truth, 361);
+  LaserScan scan = testing::make_scan(testing::room_with_pillar(), truth, 361);
   scan.odometry = odometry;
   scan.utime = utime;
   return scan;

@@ -97,5 +97,22 @@ TEST(CorrelativeSearch, BranchAndBoundFindsTheExhaustiveBest) {
   EXPECT_THROW(correlative_search(field, scan, centre, CorrelativeWindow{0.3, 0.1, 0.0}, 0.1), std::invalid_argument);
 }
 
+TEST(CorrelativeSearch, OnlyTheOutermostRingOfTheWindowIsItsEdge) {
+  // ± 0.3 m at 0.1 m cells (3 cells out), ± 0.1 rad at 0.02 rad steps (5 steps out).
+  const CorrelativeWindow window{0.3, 0.1, 0.02};
+  const Pose2 centre(1.0, 2.0, 0.5);
+  EXPECT_FALSE(on_window_edge(centre, centre, window, 0.1));
+  EXPECT_FALSE(on_window_edge(Pose2(1.2, 1.8, 0.42), centre, window, 0.1));
+  EXPECT_TRUE(on_window_edge(Pose2(1.3, 2.0, 0.5), centre, window, 0.1));
+  EXPECT_TRUE(on_window_edge(Pose2(1.0, 1.7, 0.5), centre, window, 0.1));
+  EXPECT_TRUE(on_window_edge(Pose2(1.0, 2.0, 0.4), centre, window, 0.1));
+  EXPECT_TRUE(on_window_edge(Pose2(1.0, 2.0, 0.6), centre, window, 0.1));
+  // A heading across ±π from the centre's is measured the short way round.
+  const Pose2 near_pi(0.0, 0.0, 3.1);
+  EXPECT_FALSE(on_window_edge(Pose2(0.0, 0.0, -3.1), near_pi, window, 0.1));
+  // An axis the window does not search has no edge.
+  EXPECT_FALSE(on_window_edge(Pose2(1.0, 2.0, 0.5), centre, CorrelativeWindow{0.0, 0.0, 0.02}, 0.1));
+}
+
 }  // namespace
 }  // namespace lmf
