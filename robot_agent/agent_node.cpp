@@ -237,6 +237,7 @@ void AgentNode::process(const rt::RobotScan& scan) {
   ++counters_.scans_processed;
   if (report.scan_match_tried) ++counters_.scans_match_tried;
   if (report.scan_matched) ++counters_.scans_matched;
+  if (report.scan_match_escalated) ++counters_.scans_match_escalated;
   counters_.segments_seen_through += report.segments_seen_through;
   if (!report.covariance_health.ok()) {
     window_covariance_ok_ = false;
