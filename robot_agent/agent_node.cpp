@@ -238,6 +238,7 @@ void AgentNode::process(const rt::RobotScan& scan) {
   if (report.scan_match_tried) ++counters_.scans_match_tried;
   if (report.scan_matched) ++counters_.scans_matched;
   if (report.scan_match_escalated) ++counters_.scans_match_escalated;
+  if (report.scan_match_from_escalation) ++counters_.scans_matched_from_escalation;
   counters_.segments_seen_through += report.segments_seen_through;
   if (!report.covariance_health.ok()) {
     window_covariance_ok_ = false;

@@ -112,7 +112,8 @@ struct AgentCounters {
   std::int64_t scans_processed = 0;
   std::int64_t scans_match_tried = 0;  // scans matched against the previous one (scan_matching) ...
   std::int64_t scans_matched = 0;      // ... and those whose prediction used the match
-  std::int64_t scans_match_escalated = 0;  // scans whose search escalated to its wider window
+  std::int64_t scans_match_escalated = 0;  // scans whose search escalated to its wider window ...
+  std::int64_t scans_matched_from_escalation = 0;  // ... and whose match is the wider window's
   std::int64_t segments_seen_through = 0;  // local map segments removed on free-space evidence (see_through)
   std::int64_t scans_duplicate = 0;  // resent scans re-acked
   std::int64_t scans_missed = 0;     // seq numbers skipped (lost on the way)

@@ -103,7 +103,7 @@ int main(int argc, char** argv) {
             << agent.all_rejects().total() << " messages rejected"
             << (agent.mission_done() ? ", mission done" : agent.mission_ended() ? ", mission end received" : "")
             << "; scan matches " << c.scans_matched << "/" << c.scans_match_tried << " (" << c.scans_match_escalated
-            << " searches escalated); segments seen through "
+            << " searches escalated, " << c.scans_matched_from_escalation << " matched there); segments seen through "
             << c.segments_seen_through << "; per-scan time p50 " << timing.p50_ms << " ms, p99 " << timing.p99_ms << " ms, max " << timing.max_ms
             << " ms\n"
           << kProgram << " " << robot_id << ": odometry model: " << lmf::describe(agent.local_map().odometry_model())

@@ -12,14 +12,14 @@
 // than explained, where a wrong pose near a glitched prior can still pass
 // min_overlap). The search then runs once more over a window kEscalation
 // times as wide in translation and heading, 9σ, at a cell kEscalation times
-// as coarse, so it visits the same number of poses as the first and costs
-// about as much. Its match is scored where the first was, on the first
-// search's field (the coarse field flatters every pose alike): it counts only
-// where it explains at least half of the scan there. It replaces the first
-// match when there was none, or when it lies elsewhere (beyond χ²(3) at
-// prior_alpha in its own covariance, so a corridor's open direction, which
-// the prior decides, does not count) and explains more of the scan than the
-// first match's pose does. Otherwise the first match stands.
+// as coarse, so it visits as many poses as the first (fewer where the window
+// reaches its limits of 5 m and π). Both matches' poses are then scored on one
+// field at the first search's cell (explained_shares; the coarse field
+// flatters every pose alike). The wider match counts only where it explains
+// at least half of the scan there, and replaces the first match when there
+// was none, or when it lies elsewhere (beyond χ²(3) at prior_alpha in its own
+// covariance, so a corridor's open direction, which the prior decides, does
+// not count) and explains more of the scan. Otherwise the first match stands.
 //
 // Pure functions, thread-safe.
 #pragma once
@@ -35,8 +35,8 @@ namespace lmf {
 
 struct Registration {
   std::optional<ScanMatch> match;
-  bool escalated = false;  // the wider search ran
-  bool escalated_match = false;  // ... and its match is the one returned
+  bool search_escalated = false;       // the wider search ran ...
+  bool match_from_escalation = false;  // ... and its match is the one returned
 };
 
 // The window's and the cell's growth of the escalated search: 3σ to 9σ.

@@ -4,6 +4,8 @@
 
 #include <Eigen/Cholesky>
 
+#include "lmf/front_end/escalating_registration.hpp"
+
 namespace lmf {
 namespace {
 
@@ -35,8 +37,8 @@ RegisteredScan FrontEnd::register_scan(const LaserScan& scan) {
       Registration registration = register_escalating(local_submap_.reference(), scan_points_by_kind(scan, matching_),
                                                       prior->motion.u, prior->motion.Q, matching_);
       out.registration = std::move(registration.match);
-      out.registration_escalated = registration.escalated;
-      out.escalated_registration = registration.escalated_match;
+      out.search_escalated = registration.search_escalated;
+      out.match_from_escalation = registration.match_from_escalation;
     }
   }
   // 3. The motion: the registration's, or the prior's where there was none.

@@ -19,7 +19,6 @@
 #include <cstdint>
 #include <optional>
 
-#include "lmf/front_end/escalating_registration.hpp"
 #include "lmf/front_end/motion_prior.hpp"
 #include "lmf/front_end/odometry_model.hpp"
 #include "lmf/front_end/scan_history.hpp"
@@ -35,8 +34,8 @@ struct RegisteredScan {
   std::optional<MotionIncrement> motion;
   bool registration_tried = false;
   std::optional<ScanMatch> registration;  // when it succeeded: motion is its x_AB
-  bool registration_escalated = false;    // the search escalated (escalating_registration.hpp) ...
-  bool escalated_registration = false;    // ... and its wider window's match is the registration
+  bool search_escalated = false;       // the search escalated (escalating_registration.hpp) ...
+  bool match_from_escalation = false;  // ... and its wider window's match is the registration
   double odometry_learning_weight = 0.0;  // the increment's robust weight in the odometry model (0: not learned from)
 };
 

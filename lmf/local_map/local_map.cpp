@@ -173,8 +173,8 @@ ScanReport LocalMap::process_scan(const LaserScan& scan) {
   const RegisteredScan registered = front_end_.register_scan(scan);  // step 1
   ScanReport report;
   report.scan_match_tried = registered.registration_tried;
-  report.scan_match_escalated = registered.registration_escalated;
-  report.scan_match_from_escalation = registered.escalated_registration;
+  report.scan_match_escalated = registered.search_escalated;
+  report.scan_match_from_escalation = registered.match_from_escalation;
   report.odometry_learning_weight = registered.odometry_learning_weight;
   if (const std::optional<ScanMatch>& match = registered.registration) {
     report.scan_matched = true;

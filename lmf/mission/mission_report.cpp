@@ -265,7 +265,7 @@ void write_mission_outputs(const std::filesystem::path& out, const OfflineMissio
                       {"scan_matches", r.scan_matches},
                       {"match_fallbacks", r.match_fallbacks},
                       {"match_escalations", r.match_escalations},
-                      {"escalated_matches", r.escalated_matches},
+                      {"matches_from_escalation", r.matches_from_escalation},
                       {"match_nees", {{"count", r.match_nees.size()}, {"mean", mean_or_null(r.match_nees)}}},
                       {"match_chain_nees",
                        {{"steps", kMatchChainSteps},
@@ -406,7 +406,7 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
   for (const RobotResult& r : result.robots) {
     if (r.scan_matches + r.match_fallbacks == 0) continue;
     s << r.name << " scan matches: " << r.scan_matches << ", fallbacks to odometry: " << r.match_fallbacks
-      << ", searches escalated: " << r.match_escalations << " (" << r.escalated_matches << " matched there)";
+      << ", searches escalated: " << r.match_escalations << " (" << r.matches_from_escalation << " matched there)";
     if (!r.match_nees.empty()) {
       std::snprintf(line, sizeof line, "; match NEES mean %.1f (3 if consistent) over %zu matches with a reference",
                     mean_or_null(r.match_nees).get<double>(), r.match_nees.size());

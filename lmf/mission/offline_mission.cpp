@@ -130,7 +130,7 @@ void OfflineMission::process_scan(Agent& agent, RobotResult& result) {
   result.scan_times_ms.push_back(elapsed_ms(start));
   if (report.scan_match_tried) ++(report.scan_matched ? result.scan_matches : result.match_fallbacks);
   result.match_escalations += report.scan_match_escalated ? 1 : 0;
-  result.escalated_matches += report.scan_match_from_escalation ? 1 : 0;
+  result.matches_from_escalation += report.scan_match_from_escalation ? 1 : 0;
   agent.matched_steps.push_back(report.scan_matched ? std::optional<eval::RelativePose>(eval::RelativePose{
                                                           report.scan_match_increment, report.scan_match_covariance})
                                                     : std::nullopt);

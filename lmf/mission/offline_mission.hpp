@@ -86,7 +86,7 @@ struct RobotResult {
   std::size_t scan_matches = 0;         // scans whose motion came from the scan match
   std::size_t match_fallbacks = 0;      // scans whose match was tried and failed (odometry alone)
   std::size_t match_escalations = 0;    // scans whose search escalated to its wider window ...
-  std::size_t escalated_matches = 0;    // ... and whose match is the wider window's
+  std::size_t matches_from_escalation = 0;  // ... and whose match is the wider window's
   std::vector<double> match_nees;       // per match with a reference: NEES of x_AB with its covariance (3 dof)
   // Per chain of kMatchChainSteps consecutive matches with a reference at both
   // ends: NEES of the composed increments (lmf/eval/increment_chain.hpp), where

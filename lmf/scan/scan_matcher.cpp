@@ -461,6 +461,46 @@ std::vector<Eigen::Vector2d> points_along_lines(const ReferenceScan& A, double h
   return out;
 }
 
+// B thinned to one point per cell_m square (the first given wins).
+std::vector<Eigen::Vector2d> thinned_points(const std::vector<Eigen::Vector2d>& B, double cell_m) {
+  std::vector<Eigen::Vector2d> out;
+  for (const std::size_t i : thinned(B, cell_m)) out.push_back(B[i]);
+  return out;
+}
+
+// The search's likelihood field of A (cells and σ of search_resolution_m, with
+// `levels` levels), over where the points can land from any of the poses
+// `centres` moved by up to ± linear_m and turned by up to ± angular_rad, and
+// where A has points; std::nullopt where the two do not meet.
+std::optional<LikelihoodField> search_field(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& points,
+                                            const std::vector<Pose2>& centres, double linear_m, double angular_rad,
+                                            int levels, const ScanMatcherConfig& config) {
+  const double resolution = config.search_resolution_m;
+  Eigen::AlignedBox2d reach;
+  double farthest = 0.0;
+  for (const Pose2& c : centres) {
+    const Eigen::Matrix2d R = rotation(c.phi);
+    for (const Eigen::Vector2d& b : points) {
+      reach.extend(Eigen::Vector2d(c.x, c.y) + R * b);
+      farthest = std::max(farthest, b.norm());
+    }
+  }
+  // A turn by θ carries a point at range ρ sideways by ρ sin θ (its full
+  // displacement, 2 ρ sin(θ / 2), is larger by under 0.01 ρ for θ up to 0.25 rad).
+  const double margin =
+      linear_m + farthest * std::sin(std::min(angular_rad, std::numbers::pi / 2.0)) + 2.0 * resolution;
+  reach.min().array() -= margin;
+  reach.max().array() += margin;
+  Eigen::AlignedBox2d reference_bounds = A.bounds();
+  reference_bounds.min().array() -= 2.0 * resolution;
+  reference_bounds.max().array() += 2.0 * resolution;
+  const Eigen::AlignedBox2d region = reach.intersection(reference_bounds);
+  if (region.isEmpty()) return std::nullopt;
+  std::vector<Eigen::Vector2d> field_points = config.field_along_lines ? points_along_lines(A, resolution) : A.points();
+  field_points.insert(field_points.end(), A.unoriented_points().begin(), A.unoriented_points().end());
+  return LikelihoodField(field_points, region, resolution, resolution, levels);
+}
+
 }  // namespace
 
 std::optional<ScanMatch> refine_match(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& B,
@@ -481,33 +521,16 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
 
   // Stage 1: the correlative search, on B thinned to one point per cell.
   const double resolution = config.search_resolution_m;
-  std::vector<Eigen::Vector2d> search_points;
-  for (const std::size_t i : thinned(B, resolution)) search_points.push_back(B[i]);
+  const std::vector<Eigen::Vector2d> search_points = thinned_points(B, resolution);
   if (search_points.empty()) return std::nullopt;  // none finite
   const CorrelativeWindow window = search_window(search_points, config);
-  // The field covers where B's points can land within the window (and where A has points).
-  Eigen::AlignedBox2d reach;
-  double farthest = 0.0;
-  const Eigen::Matrix2d R_hat = rotation(u_hat.phi);
-  for (const Eigen::Vector2d& b : search_points) {
-    reach.extend(Eigen::Vector2d(u_hat.x, u_hat.y) + R_hat * b);
-    farthest = std::max(farthest, b.norm());
-  }
-  const double margin = window.linear_m + farthest * std::sin(window.angular_rad) + 2.0 * resolution;
-  reach.min().array() -= margin;
-  reach.max().array() += margin;
-  Eigen::AlignedBox2d reference_bounds = A.bounds();
-  reference_bounds.min().array() -= 2.0 * resolution;
-  reference_bounds.max().array() += 2.0 * resolution;
-  const Eigen::AlignedBox2d region = reach.intersection(reference_bounds);
-  if (region.isEmpty()) return std::nullopt;
   // Enough levels that one top-level block spans the window's translations.
-  std::vector<Eigen::Vector2d> field_points = config.field_along_lines ? points_along_lines(A, resolution) : A.points();
-  field_points.insert(field_points.end(), A.unoriented_points().begin(), A.unoriented_points().end());
-  const LikelihoodField field(field_points, region,
-                              resolution, resolution, LikelihoodField::levels_for(window.linear_m, resolution));
+  const std::optional<LikelihoodField> field =
+      search_field(A, search_points, {u_hat}, window.linear_m, window.angular_rad,
+                   LikelihoodField::levels_for(window.linear_m, resolution), config);
+  if (!field) return std::nullopt;
   const std::optional<CorrelativeResult> search =
-      correlative_search(field, search_points, u_hat, window, config.min_overlap, config.ambiguity_ratio);
+      correlative_search(*field, search_points, u_hat, window, config.min_overlap, config.ambiguity_ratio);
   if (!search) return std::nullopt;
   const CorrelativeMatch* best = &search->best;
 
@@ -555,12 +578,7 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const ScanPoints& B
   // Do the objects agree with the rest of the scene? The full estimate seen
   // from the structure's, against the structure's covariance (a conservative
   // stand-in for that of the difference, Σ_structure − Σ_all).
-  const Pose2 d = between(structure->x_AB, with_objects->x_AB);
-  const Eigen::Vector3d delta(d.x, d.y, wrap_angle(d.phi));
-  const Eigen::LDLT<Eigen::Matrix3d> ldlt(structure->covariance);
-  const double d2 = delta.dot(ldlt.solve(delta));
-  if (ldlt.info() == Eigen::Success && std::isfinite(d2) &&
-      d2 > spmap::chi2_threshold(3, config.object_consistency_alpha)) {
+  if (differs_beyond(*structure, with_objects->x_AB, config.object_consistency_alpha)) {
     structure->objects_moving = true;
     structure->search_score = with_objects->search_score;
     structure->search_pose = with_objects->search_pose;
@@ -570,6 +588,32 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const ScanPoints& B
   with_objects->static_x_AB = structure->x_AB;
   with_objects->static_laser_information = structure->laser_information;
   return with_objects;
+}
+
+std::vector<double> explained_shares(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& B,
+                                     const std::vector<Pose2>& poses, const ScanMatcherConfig& config) {
+  config.validate();
+  std::vector<double> shares(poses.size(), 0.0);
+  const std::vector<Eigen::Vector2d> points = thinned_points(B, config.search_resolution_m);
+  if (points.empty() || A.size() < 3) return shares;
+  const std::optional<LikelihoodField> field = search_field(A, points, poses, 0.0, 0.0, 1, config);
+  if (!field) return shares;
+  for (std::size_t k = 0; k < poses.size(); ++k) {
+    const Eigen::Matrix2d R = rotation(poses[k].phi);
+    const Eigen::Vector2d t(poses[k].x, poses[k].y);
+    double sum = 0.0;
+    for (const Eigen::Vector2d& b : points) sum += field->likelihood(t + R * b);
+    shares[k] = sum / static_cast<double>(points.size());
+  }
+  return shares;
+}
+
+bool differs_beyond(const ScanMatch& match, const Pose2& other, double alpha) {
+  const Pose2 d = between(match.x_AB, other);
+  const Eigen::Vector3d delta(d.x, d.y, wrap_angle(d.phi));
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(match.covariance);
+  const double d2 = delta.dot(ldlt.solve(delta));
+  return ldlt.info() == Eigen::Success && std::isfinite(d2) && d2 > spmap::chi2_threshold(3, alpha);
 }
 
 }  // namespace lmf

@@ -281,6 +281,19 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const std::vector<E
 std::optional<ScanMatch> match_scans(const ReferenceScan& A, const ScanPoints& B, const Pose2& u_hat,
                                      const Eigen::Matrix3d& Q, const ScanMatcherConfig& config);
 
+// Whether two increments differ beyond chi2inv(1 - alpha, 3): the offset of
+// `other` seen from `match`, in match's covariance (false where it is not
+// positive definite enough to tell).
+bool differs_beyond(const ScanMatch& match, const Pose2& other, double alpha);
+
+// The share of B's points each of `poses` explains: their mean likelihood on
+// one likelihood field of A, the correlative search's at search_resolution_m
+// (a pose of the search's grid scores there what the search gave it), so poses
+// found by different searches compare on one footing. 0 where B or A is empty.
+// Throws std::invalid_argument for an invalid config.
+std::vector<double> explained_shares(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& B,
+                                     const std::vector<Pose2>& poses, const ScanMatcherConfig& config);
+
 // The refinement alone (stage 2, from the start pose x0 instead of the search's
 // best): for tests that compare it with the full match. std::nullopt on too few
 // correspondences or a failed solve.

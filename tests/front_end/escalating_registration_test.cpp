@@ -54,8 +54,8 @@ TEST(EscalatingRegistration, AMotionInsideTheWindowIsThePlainMatch) {
   const std::optional<ScanMatch> plain = match_scans(p.A, p.B, odometry, kQ, config);
   ASSERT_TRUE(r.match.has_value());
   ASSERT_TRUE(plain.has_value());
-  EXPECT_FALSE(r.escalated);
-  EXPECT_FALSE(r.escalated_match);
+  EXPECT_FALSE(r.search_escalated);
+  EXPECT_FALSE(r.match_from_escalation);
   EXPECT_EQ(r.match->x_AB.x, plain->x_AB.x);
   EXPECT_EQ(r.match->x_AB.phi, plain->x_AB.phi);
 }
@@ -74,8 +74,8 @@ TEST(EscalatingRegistration, AGlitchBeyondTheWindowIsFoundByTheWiderSearch) {
     EXPECT_GT(std::abs(wrap_angle(plain->x_AB.phi - truth.phi)), 0.05);
   }
   const Registration r = register_escalating(p.A, p.B, odometry, kQ, config);
-  EXPECT_TRUE(r.escalated);
-  EXPECT_TRUE(r.escalated_match);
+  EXPECT_TRUE(r.search_escalated);
+  EXPECT_TRUE(r.match_from_escalation);
   ASSERT_TRUE(r.match.has_value());
   EXPECT_NEAR(r.match->x_AB.x, truth.x, 0.03);
   EXPECT_NEAR(r.match->x_AB.y, truth.y, 0.03);
