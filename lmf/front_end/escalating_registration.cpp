@@ -4,7 +4,6 @@
 #include <numbers>
 #include <vector>
 
-
 namespace lmf {
 namespace {
 

@@ -485,8 +485,12 @@ std::optional<LikelihoodField> search_field(const ReferenceScan& A, const std::v
       farthest = std::max(farthest, b.norm());
     }
   }
-  // A turn by θ carries a point at range ρ sideways by ρ sin θ (its full
-  // displacement, 2 ρ sin(θ / 2), is larger by under 0.01 ρ for θ up to 0.25 rad).
+  // A turn by θ carries a point at range ρ sideways by ρ sin θ. Its full
+  // displacement, 2 ρ sin(θ / 2), is larger: by 0.002 ρ at the default window
+  // (0.25 rad), 0.05 ρ at the escalated one (0.75 rad); points that land
+  // beyond the field read 0. Not widened: the field's cells are anchored at
+  // its region's corner, so a wider region requantises every score
+  // (docs/results.md, "The search escalates").
   const double margin =
       linear_m + farthest * std::sin(std::min(angular_rad, std::numbers::pi / 2.0)) + 2.0 * resolution;
   reach.min().array() -= margin;

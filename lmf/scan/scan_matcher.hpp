@@ -287,9 +287,11 @@ std::optional<ScanMatch> match_scans(const ReferenceScan& A, const ScanPoints& B
 bool differs_beyond(const ScanMatch& match, const Pose2& other, double alpha);
 
 // The share of B's points each of `poses` explains: their mean likelihood on
-// one likelihood field of A, the correlative search's at search_resolution_m
-// (a pose of the search's grid scores there what the search gave it), so poses
-// found by different searches compare on one footing. 0 where B or A is empty.
+// one likelihood field of A, built as the correlative search's (cells and σ of
+// search_resolution_m, B thinned to one point per cell), so poses found by
+// different searches compare on one footing. Its cells are anchored at its own
+// region's corner, so a pose may score a little differently from what a search
+// over another region gave it. 0 where B or A is empty.
 // Throws std::invalid_argument for an invalid config.
 std::vector<double> explained_shares(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& B,
                                      const std::vector<Pose2>& poses, const ScanMatcherConfig& config);
