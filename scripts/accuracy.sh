@@ -12,6 +12,7 @@
 #   sim-3r-20min       lmf-sim --robots 3 --seed 1 --duration-s 1200
 #   sim-8r-1h          lmf-sim --robots 8 --seed 4 --duration-s 3600
 #   sim-3r-20min-real  lmf-sim --robots 3 --seed 1 --duration-s 1200 --odometry real
+#   sim-3r-20min-short the same with a short-range sparse laser (--max-range-m 8 --beams 181)
 # --quick: one run per building (realodo, the harder odometry, one robot) and sim-3r-20min:
 #   a few minutes on 2 cores; the full run stays the reference.
 # --smoke: only belgioioso-noisy split 1 and a 2-minute 3-robot real-odometry sim mission.
@@ -27,7 +28,7 @@ build=${BUILD_DIR:-$root/build}
 datasets=${LMF_DATASETS_DIR:-$root/../shared/datasets}
 smoke=0 quick=0 json_out="" markdown_out="" work="" jobs=2 config=""
 
-usage() { sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,21p' "$0" | sed 's/^# \{0,1\}//'; }
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --smoke) smoke=1 ;;
@@ -107,6 +108,7 @@ else
   sim_case sim-3r-20min "--robots 3 --seed 1 --duration-s 1200"
   sim_case sim-8r-1h "--robots 8 --seed 4 --duration-s 3600"
   sim_case sim-3r-20min-real "--robots 3 --seed 1 --duration-s 1200 --odometry real"
+  sim_case sim-3r-20min-short "--robots 3 --seed 1 --duration-s 1200 --odometry real --max-range-m 8 --beams 181"
 fi
 
 # One case: its command under bash's `time` (wall, user, sys seconds into time.txt).

@@ -207,6 +207,18 @@ void apply_laser_mounting(CarmenLog& log) {
   for (LaserScan& scan : log.scans) scan.odometry = compose(scan.odometry, *log.laser_mounting.x_RS);
 }
 
+void apply_flaser_no_return(CarmenLog& log, const CarmenReadOptions& options) {
+  // FLASER scans are those read with the options' range (a ROBOTLASER1 line
+  // states its own).
+  const auto from_flaser = [&](const LaserScan& scan) { return scan.max_range_m == options.flaser_max_range_m; };
+  log.flaser_no_return = find_no_return_reading(log.scans, from_flaser);
+  const std::optional<double> ceiling = log.flaser_no_return.range_m;
+  if (!ceiling || *ceiling >= options.flaser_max_range_m) return;
+  for (LaserScan& scan : log.scans) {
+    if (from_flaser(scan)) scan.max_range_m = *ceiling;
+  }
+}
+
 CarmenLog read_carmen_log(const std::filesystem::path& file, const CarmenReadOptions& options) {
   if (!(options.flaser_max_range_m > 0.0)) {
     throw std::invalid_argument("read_carmen_log: flaser_max_range_m must be positive");
@@ -228,6 +240,7 @@ CarmenLog read_carmen_log(const std::filesystem::path& file, const CarmenReadOpt
       log.cut_short = std::string(e.what()) + " (the last line, without its newline: the log was cut there; read up to it)";
     }
   });
+  apply_flaser_no_return(log, options);
   if (options.use_laser_mounting) apply_laser_mounting(log);
   return log;
 }

@@ -24,6 +24,7 @@
 
 #include "lmf/geometry/pose2.hpp"
 #include "lmf/io/laser_mounting.hpp"
+#include "lmf/io/no_return_reading.hpp"
 #include "lmf/scan/laser_scan.hpp"
 
 namespace lmf::io {
@@ -49,6 +50,10 @@ struct CarmenLog {
   std::vector<LaserScan> scans;                  // FLASER and ROBOTLASER1, in file order
   std::vector<Pose2> laser_poses;                // each scan's laser pose field, as written
   LaserMounting laser_mounting;                  // found by read_carmen_log (apply_laser_mounting)
+  // The FLASER scans' no-return reading, found from their readings by
+  // read_carmen_log (no_return_reading.hpp); where it lies below
+  // flaser_max_range_m it is their max_range_m.
+  NoReturnReading flaser_no_return;
   std::size_t no_return_readings = 0;            // NaN or infinite ranges, read as "no return"
   std::optional<std::string> cut_short;          // the last line was cut mid-line: why it did not parse
   std::vector<OdometryRecord> odometry;          // ODOM lines
@@ -58,7 +63,9 @@ struct CarmenLog {
 
 struct CarmenReadOptions {
   // Readings at or above max_range_m - margin are "no return"; FLASER has no max
-  // range field, so it comes from here. 80 m covers the datasets' sensors.
+  // range field, so it comes from here (80 m covers the datasets' sensors), or
+  // from the log's own no-return reading where it shows one below this
+  // (CarmenLog::flaser_no_return).
   double flaser_max_range_m = 81.0;
   // Compose each scan's robot pose with the laser's mounting (apply_laser_mounting).
   bool use_laser_mounting = true;
@@ -78,6 +85,11 @@ CarmenLog read_carmen_log(const std::filesystem::path& file, const CarmenReadOpt
 // (estimate_laser_mounting) into log.laser_mounting and, where it is rigid,
 // moves every scan's odometry pose to the laser's: x_OR ⊕ x_RS.
 void apply_laser_mounting(CarmenLog& log);
+
+// Finds the FLASER scans' no-return reading (find_no_return_reading) into
+// log.flaser_no_return and, where it lies below options.flaser_max_range_m,
+// makes it their max_range_m.
+void apply_flaser_no_return(CarmenLog& log, const CarmenReadOptions& options);
 
 // Parses one line (no trailing newline) into `log`; `file`/`line_number` only feed error messages.
 void parse_carmen_line(const std::string& text, const std::filesystem::path& file, std::size_t line_number,

@@ -66,6 +66,7 @@ RecordedLog read_carmen_recording(const std::filesystem::path& file) {
   recording.name = log_name(file);
   recording.scans = std::move(log.scans);
   recording.notes.push_back(log.laser_mounting.note);
+  if (log.flaser_no_return.range_m) recording.notes.push_back(io::describe(log.flaser_no_return));
   if (log.no_return_readings > 0) {
     recording.notes.push_back(std::to_string(log.no_return_readings) + " NaN or infinite ranges read as \"no return\"");
   }
@@ -185,7 +186,9 @@ MissionInputs load_sim_folder(const std::filesystem::path& dir, const SightingNo
     RobotLog robot;
     robot.robot_id = id;
     robot.name = "robot" + std::to_string(id);
-    robot.scans = io::read_carmen_log(log_file).scans;
+    io::CarmenLog log = io::read_carmen_log(log_file);
+    if (log.flaser_no_return.range_m) inputs.notes.push_back(robot.name + ": " + io::describe(log.flaser_no_return));
+    robot.scans = std::move(log.scans);
     const auto gt_file = dir / ("robot" + std::to_string(id) + ".gt");
     if (std::filesystem::exists(gt_file)) inputs.reference[id] = reference_for(robot.scans, io::read_trajectory(gt_file), gt_file);
     inputs.robots.push_back(std::move(robot));

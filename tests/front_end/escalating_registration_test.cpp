@@ -1,6 +1,6 @@
 // The front end's registration stage (escalating_registration.hpp): a motion
 // beyond the search window is found by the escalated search; one inside it
-// is the plain match's.
+// is the plain match's, and so is one the escalated search agrees with.
 #include "lmf/front_end/escalating_registration.hpp"
 
 #include <cmath>
@@ -82,6 +82,39 @@ TEST(EscalatingRegistration, AGlitchBeyondTheWindowIsFoundByTheWiderSearch) {
   EXPECT_NEAR(r.match->x_AB.phi, truth.phi, 0.01);
   // Its covariance is the laser's: the contradicted prior is down-weighted, not trusted.
   EXPECT_LT(std::sqrt(r.match->covariance(2, 2)), 0.01);
+}
+
+TEST(EscalatingRegistration, AMatchExplainingLessThanHalfEscalatesAndStandsWhereTheWiderAgrees) {
+  const ScanMatcherConfig config;
+  // A curved screen, new since the reference, now fills more than half of the
+  // view: the right pose explains less than half of the scan, though more
+  // than min_overlap; no pose lays the curve on the room's straight walls.
+  const Pose2 truth(0.3, 0.02, 0.05);
+  testing::SyntheticWorld with_screen = testing::room_with_pillar();
+  constexpr int kPieces = 24;
+  const auto on_screen = [&](int k) {
+    const double a = truth.phi + (-1.0 + 2.0 * k / kPieces) * 1.0;
+    return Eigen::Vector2d(truth.x + 1.2 * std::cos(a), truth.y + 1.2 * std::sin(a));
+  };
+  for (int k = 0; k < kPieces; ++k) with_screen.walls.push_back({on_screen(k), on_screen(k + 1)});
+  const ReferenceScan A = ReferenceScan::from(testing::make_scan(testing::room_with_pillar(), Pose2(), 361), config);
+  const ScanPoints B = scan_points_by_kind(testing::make_scan(with_screen, truth, 361), config);
+  const Pose2 odometry(0.32, 0.0, 0.07);
+  const std::optional<ScanMatch> plain = match_scans(A, B, odometry, kQ, config);
+  ASSERT_TRUE(plain.has_value());
+  ASSERT_FALSE(plain->search_at_window_edge);
+  ASSERT_GE(plain->search_score, config.min_overlap);
+  ASSERT_LT(plain->search_score, 0.5);
+  const Registration r = register_escalating(A, B, odometry, kQ, config);
+  EXPECT_TRUE(r.search_escalated);
+  // The wider search finds the same pose: not elsewhere, so the first match stands.
+  EXPECT_FALSE(r.match_from_escalation);
+  ASSERT_TRUE(r.match.has_value());
+  EXPECT_EQ(r.match->x_AB.x, plain->x_AB.x);
+  EXPECT_EQ(r.match->x_AB.y, plain->x_AB.y);
+  EXPECT_EQ(r.match->x_AB.phi, plain->x_AB.phi);
+  EXPECT_NEAR(r.match->x_AB.x, truth.x, 0.03);
+  EXPECT_NEAR(r.match->x_AB.phi, truth.phi, 0.01);
 }
 
 }  // namespace

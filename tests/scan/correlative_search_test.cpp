@@ -114,5 +114,17 @@ TEST(CorrelativeSearch, OnlyTheOutermostRingOfTheWindowIsItsEdge) {
   EXPECT_FALSE(on_window_edge(Pose2(1.0, 2.0, 0.5), centre, CorrelativeWindow{0.0, 0.0, 0.02}, 0.1));
 }
 
+TEST(CorrelativeSearch, ARectangularWindowHasEachAxisItsOwnEdge) {
+  // ± 0.3 m in x, ± 0.8 m in y (8 cells out).
+  CorrelativeWindow window{0.3, 0.1, 0.02};
+  window.linear_y_m = 0.8;
+  const Pose2 centre(1.0, 2.0, 0.5);
+  EXPECT_TRUE(on_window_edge(Pose2(1.3, 2.0, 0.5), centre, window, 0.1));
+  EXPECT_FALSE(on_window_edge(Pose2(1.0, 2.3, 0.5), centre, window, 0.1));
+  EXPECT_FALSE(on_window_edge(Pose2(1.0, 1.3, 0.5), centre, window, 0.1));
+  EXPECT_TRUE(on_window_edge(Pose2(1.0, 2.8, 0.5), centre, window, 0.1));
+  EXPECT_TRUE(on_window_edge(Pose2(1.0, 1.2, 0.5), centre, window, 0.1));
+}
+
 }  // namespace
 }  // namespace lmf
