@@ -109,6 +109,9 @@ int main(int argc, char** argv) {
           << kProgram << " " << robot_id << ": odometry model: " << lmf::describe(agent.local_map().odometry_model())
           << " (" << agent.local_map().odometry_learning_stats().increments << " matched increments, "
           << agent.local_map().odometry_learning_stats().downweighted << " downweighted as glitches)\n";
+  const std::string bounds =
+      lmf::describe_bounds(agent.local_map().odometry_model(), agent.local_map().odometry_learning_stats());
+  if (!bounds.empty()) summary << kProgram << " " << robot_id << ": WARNING: " << bounds << "\n";
   std::cerr << summary.str() << std::flush;
   return 0;
 }

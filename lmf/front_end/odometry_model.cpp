@@ -16,6 +16,19 @@
 namespace lmf {
 namespace {
 
+// The systematic parameters of `m` at the bounds `config` holds them within.
+std::vector<std::string> parameters_at_bounds(const OdometryErrorModel& m, const OdometryLearningConfig& config) {
+  constexpr double kAt = 1.0 - 1e-9;
+  std::vector<std::string> at;
+  if (std::abs(m.translation_scale - 1.0) >= kAt * config.max_scale_error) at.emplace_back("translation_scale");
+  if (std::abs(m.rotation_scale - 1.0) >= kAt * config.max_scale_error) at.emplace_back("rotation_scale");
+  if (config.max_heading_bias_rad_per_m > 0.0 &&
+      std::abs(m.heading_bias_rad_per_m) >= kAt * config.max_heading_bias_rad_per_m) {
+    at.emplace_back("heading_bias_rad_per_m");
+  }
+  return at;
+}
+
 // The regressors of the three variances for an increment u (see the header).
 struct Regressors {
   Eigen::Vector2d translation;  // [1, d²]
@@ -113,6 +126,22 @@ Eigen::Matrix3d OdometryErrorModel::systematic_jacobian(const Pose2& u) const {
   A(2, 1) = u.phi;
   A(2, 2) = std::hypot(u.x, u.y);
   return A;
+}
+
+std::string describe_bounds(const OdometryErrorModel& m, const OdometryLearningStats& stats) {
+  if (stats.at_bounds.empty()) return "";
+  std::string names;
+  for (const std::string& name : stats.at_bounds) {
+    char value[64];
+    const double v = name == "translation_scale" ? m.translation_scale
+                     : name == "rotation_scale"  ? m.rotation_scale
+                                                 : m.heading_bias_rad_per_m;
+    std::snprintf(value, sizeof value, " (%.4f)", v);
+    names += (names.empty() ? "" : ", ") + name + value;
+  }
+  return "learned odometry at its physical bound: " + names +
+         "; the scan matches disagree with the odometry beyond what wheels do (check the laser's range and "
+         "no-return reading, and the scan-matching configuration)";
 }
 
 std::string describe(const OdometryErrorModel& m) {
@@ -227,6 +256,7 @@ double OdometryModelLearner::observe(const Pose2& u, const Pose2& x_match, const
   ++stats_.increments;
   if (rho < 0.5) ++stats_.downweighted;
   stats_.last_weight = rho;
+  stats_.at_bounds = parameters_at_bounds(model_, config_);
   return rho;
 }
 

@@ -46,6 +46,7 @@
 #include <cstddef>
 #include <deque>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -123,7 +124,17 @@ struct OdometryLearningStats {
   std::size_t increments = 0;     // scan-matched increments used
   std::size_t downweighted = 0;   // of those, with a robust weight below 1/2 when they came (glitches)
   double last_weight = 1.0;       // the robust weight of the last one
+  // The systematic parameters held at their physical bounds after the last
+  // sweep ("translation_scale", "rotation_scale", "heading_bias_rad_per_m"):
+  // the matches disagree with the odometry beyond what wheels do. A laser
+  // read wrongly (its no-return readings taken for returns) or a matcher that
+  // misjudges its scenes does that; a robot's wheels do not.
+  std::vector<std::string> at_bounds;
 };
+
+// "" when no learned parameter is at its bound; otherwise one line for people
+// naming them, their values and what to check.
+std::string describe_bounds(const OdometryErrorModel& model, const OdometryLearningStats& stats);
 
 class OdometryModelLearner {
  public:

@@ -87,7 +87,8 @@ json odometry_model_json(const OdometryErrorModel& m, const OdometryLearningStat
           {"phi_per_rad", m.phi_per_rad},
           {"phi_turn_distance", m.phi_turn_distance},
           {"increments_learned", stats.increments},
-          {"increments_downweighted", stats.downweighted}};
+          {"increments_downweighted", stats.downweighted},
+          {"at_bounds", stats.at_bounds}};
 }
 
 json consistency_json(const std::vector<LocalMapConsistency>& maps) {
@@ -422,6 +423,8 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
   for (const RobotResult& r : result.robots) {
     s << r.name << " odometry model: " << describe(r.odometry_model) << " (" << r.odometry_learning.increments
       << " matched increments, " << r.odometry_learning.downweighted << " downweighted as glitches)\n";
+    const std::string bounds = describe_bounds(r.odometry_model, r.odometry_learning);
+    if (!bounds.empty()) s << "WARNING: " << r.name << ": " << bounds << "\n";
   }
   std::size_t seen_through = 0;
   for (const RobotResult& r : result.robots) seen_through += r.segments_seen_through;

@@ -9,6 +9,7 @@
 #include <numbers>
 #include <random>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include <Eigen/Cholesky>
@@ -222,9 +223,29 @@ TEST(OdometryModelLearner, TheHeadingBiasStaysWithinItsPhysicalBound) {
   const double bound = OdometryLearningConfig{}.max_heading_bias_rad_per_m;
   EXPECT_GT(bound, 0.0);
   EXPECT_NEAR(learner.model().heading_bias_rad_per_m, bound, 1e-12);
-  // Inside the bound it is learned as before.
+  // ... and said to be there.
+  EXPECT_EQ(learner.stats().at_bounds, std::vector<std::string>{"heading_bias_rad_per_m"});
+  EXPECT_NE(describe_bounds(learner.model(), learner.stats()).find("heading_bias_rad_per_m (0.0350)"),
+            std::string::npos);
+  // Inside the bound it is learned as before, and nothing is at a bound.
   sim.truth.heading_bias_rad_per_m = -0.5 * bound;
-  EXPECT_NEAR(sim.run(paper_prior(), 300).model().heading_bias_rad_per_m, -0.5 * bound, 0.012);
+  const OdometryModelLearner inside = sim.run(paper_prior(), 300);
+  EXPECT_NEAR(inside.model().heading_bias_rad_per_m, -0.5 * bound, 0.012);
+  EXPECT_TRUE(inside.stats().at_bounds.empty());
+  EXPECT_EQ(describe_bounds(inside.model(), inside.stats()), "");
+}
+
+// A translation scale no wheel has (matches that see the robot stand still
+// while the odometry says it drove, as a laser's no-return readings read as
+// returns do) is held at its bound, and the learner says so.
+TEST(OdometryModelLearner, AScaleBeyondWhatWheelsDoIsHeldAtItsBoundAndReported) {
+  Simulation sim;
+  sim.truth = real_robot();
+  sim.truth.translation_scale = 0.5;
+  const OdometryModelLearner learner = sim.run(paper_prior(), 300);
+  const double bound = OdometryLearningConfig{}.max_scale_error;
+  EXPECT_NEAR(learner.model().translation_scale, 1.0 - bound, 1e-12);
+  EXPECT_EQ(learner.stats().at_bounds, std::vector<std::string>{"translation_scale"});
 }
 
 TEST(OdometryModelLearner, GlitchesAreDownweightedNotLearnedAsNoise) {
