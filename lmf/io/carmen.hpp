@@ -72,7 +72,8 @@ struct CarmenReadOptions {
 };
 
 // Reads a whole log (plain or gzip; any line length). `#` comments and blank
-// lines are ignored; FLASER needs 2..4096 beams. A NaN or infinite range is a
+// lines are ignored; FLASER needs 2..4096 beams, and their no-return reading
+// is found from the log (apply_flaser_no_return). A NaN or infinite range is a
 // beam with no return (no_return_readings), not an error. A last line without
 // its newline that does not parse was cut by a killed logger: the log is read
 // up to it (cut_short says why). Throws CarmenParseError on any other

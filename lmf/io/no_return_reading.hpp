@@ -8,8 +8,8 @@
 // matched, the arc says "the robot stood still" (a short-range laser in a
 // corridor loses most of its along-the-corridor travel to it). So the reader
 // finds the ceiling from the readings themselves: a value above most
-// readings that many scans touch and almost none pass. A wall at one exact distance in many scans, with
-// farther walls seen in others, is not one.
+// readings that many scans touch and almost none pass. A wall at one exact
+// distance in many scans, with farther walls seen in others, is not one.
 //
 // Pure, thread-safe.
 #pragma once
@@ -24,14 +24,14 @@
 
 namespace lmf::io {
 
+// The ceiling also lies above the scans' median reading: a log of one
+// constant range has no ceiling to tell.
 struct NoReturnCeiling {
   // A scan touches the ceiling when one of its readings equals it: at least
   // one scan in twenty does, and at least this many (an exact value repeated
-  // by chance in a few scans is not a ceiling) ...
+  // by chance in a few scans is not a ceiling).
   double min_share_touching = 0.05;
   std::size_t min_scans_touching = 10;
-  // ... and it lies above the scans' median reading (a log of one constant
-  // range has no ceiling to tell).
   // A reading passes it when it lies beyond the ceiling by more than this
   // (another no-return code of the same laser may lie a little above) ...
   double pass_margin_m = 0.1;
