@@ -1,6 +1,7 @@
 #include "lmf/front_end/odometry_model.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -16,15 +17,28 @@
 namespace lmf {
 namespace {
 
-// The systematic parameters of `m` at the bounds `config` holds them within.
+// The systematic parameters by name: each one's value, and its distance from
+// where it has no effect (a scale's from 1, the bias's from 0).
+struct NamedParameter {
+  const char* name;
+  double value;
+  double offset;
+};
+std::array<NamedParameter, 3> named_systematic_parameters(const OdometryErrorModel& m) {
+  return {{{"translation_scale", m.translation_scale, std::abs(m.translation_scale - 1.0)},
+           {"rotation_scale", m.rotation_scale, std::abs(m.rotation_scale - 1.0)},
+           {"heading_bias_rad_per_m", m.heading_bias_rad_per_m, std::abs(m.heading_bias_rad_per_m)}}};
+}
+
+// The systematic parameters of `m` at the bounds `config` holds them within
+// (a zero bound holds its parameter at 0: nothing is learned there to report).
 std::vector<std::string> parameters_at_bounds(const OdometryErrorModel& m, const OdometryLearningConfig& config) {
   constexpr double kAt = 1.0 - 1e-9;
+  const double bounds[] = {config.max_scale_error, config.max_scale_error, config.max_heading_bias_rad_per_m};
   std::vector<std::string> at;
-  if (std::abs(m.translation_scale - 1.0) >= kAt * config.max_scale_error) at.emplace_back("translation_scale");
-  if (std::abs(m.rotation_scale - 1.0) >= kAt * config.max_scale_error) at.emplace_back("rotation_scale");
-  if (config.max_heading_bias_rad_per_m > 0.0 &&
-      std::abs(m.heading_bias_rad_per_m) >= kAt * config.max_heading_bias_rad_per_m) {
-    at.emplace_back("heading_bias_rad_per_m");
+  const std::array<NamedParameter, 3> parameters = named_systematic_parameters(m);
+  for (std::size_t i = 0; i < parameters.size(); ++i) {
+    if (bounds[i] > 0.0 && parameters[i].offset >= kAt * bounds[i]) at.emplace_back(parameters[i].name);
   }
   return at;
 }
@@ -131,13 +145,11 @@ Eigen::Matrix3d OdometryErrorModel::systematic_jacobian(const Pose2& u) const {
 std::string describe_bounds(const OdometryErrorModel& m, const OdometryLearningStats& stats) {
   if (stats.at_bounds.empty()) return "";
   std::string names;
-  for (const std::string& name : stats.at_bounds) {
+  for (const NamedParameter& p : named_systematic_parameters(m)) {
+    if (std::find(stats.at_bounds.begin(), stats.at_bounds.end(), p.name) == stats.at_bounds.end()) continue;
     char value[64];
-    const double v = name == "translation_scale" ? m.translation_scale
-                     : name == "rotation_scale"  ? m.rotation_scale
-                                                 : m.heading_bias_rad_per_m;
-    std::snprintf(value, sizeof value, " (%.4f)", v);
-    names += (names.empty() ? "" : ", ") + name + value;
+    std::snprintf(value, sizeof value, " (%.4f)", p.value);
+    names += (names.empty() ? "" : ", ") + std::string(p.name) + value;
   }
   return "learned odometry at its physical bound: " + names +
          "; the scan matches disagree with the odometry beyond what wheels do (check the laser's range and "
