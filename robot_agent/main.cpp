@@ -108,7 +108,12 @@ int main(int argc, char** argv) {
             << " ms\n"
           << kProgram << " " << robot_id << ": odometry model: " << lmf::describe(agent.local_map().odometry_model())
           << " (" << agent.local_map().odometry_learning_stats().increments << " matched increments, "
-          << agent.local_map().odometry_learning_stats().downweighted << " downweighted as glitches)\n";
+          << agent.local_map().odometry_learning_stats().downweighted << " downweighted as glitches)\n"
+          << kProgram << " " << robot_id << ": laser point noise: "
+          << lmf::describe_point_noise(agent.local_map().config().scan_matching.point_sigma_m,
+                                       agent.local_map().front_end().range_noise_per_m(),
+                                       agent.local_map().front_end().range_noise().matches())
+          << "\n";
   const std::string bounds =
       lmf::describe_bounds(agent.local_map().odometry_model(), agent.local_map().odometry_learning_stats());
   if (!bounds.empty()) summary << kProgram << " " << robot_id << ": WARNING: " << bounds << "\n";

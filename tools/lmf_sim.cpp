@@ -94,6 +94,9 @@ bool parse(int argc, char** argv, Options& o) {
       ("beams", po::value(&beams)->default_value(beams, text(beams)), "beams per scan over 180 deg")
       ("range-noise-m", po::value(&c.laser.range_noise_sigma_m)->default_value(c.laser.range_noise_sigma_m, text(c.laser.range_noise_sigma_m)),
        "standard deviation of the range noise (m)")
+      ("range-noise-per-m", po::value(&c.laser.range_noise_per_m)->default_value(c.laser.range_noise_per_m, text(c.laser.range_noise_per_m)),
+       "the range noise's part proportional to the range (m per m; the two add in quadrature, as a laser's \"5 cm or 1 % of "
+       "the range\")")
       ("max-range-m", po::value(&c.laser.max_range_m)->default_value(c.laser.max_range_m, text(c.laser.max_range_m)),
        "laser max range (m); a beam with no wall within it reads exactly this (\"no return\")")
       ("odometry", po::value(&odometry_model)->default_value(odometry_model),

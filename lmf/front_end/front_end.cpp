@@ -31,6 +31,9 @@ RegisteredScan FrontEnd::register_scan(const LaserScan& scan) {
   //    search window and as the refinement's prior, the window escalating
   //    when the motion did more than it holds (Q is singular only for a
   //    standing robot with zero noise floors: no prior, no registration).
+  if (matching_.range_noise_from_residuals) {
+    if (const std::optional<double> per_m = range_noise_.range_noise_per_m()) matching_.range_noise_per_m = *per_m;
+  }
   if (prior && matching_.enabled && !local_submap_.empty()) {
     out.registration_tried = true;
     if (Eigen::LLT<Eigen::Matrix3d>(prior->motion.Q).info() == Eigen::Success) {
@@ -56,7 +59,8 @@ RegisteredScan FrontEnd::register_scan(const LaserScan& scan) {
   out.odometry_learning_weight = motion_prior_.advance(scan.utime, scan.odometry, prior,
                                                        out.motion.value_or(MotionIncrement{}),
                                                        out.registration ? &*out.registration : nullptr);
-  // 5. The local submap goes on from a registered motion. After the odometry's
+  // 5. The local submap goes on from a registered motion, and the point noise
+  //    from its residuals. After the odometry's
   //    alone it restarts with this scan, as the odometry's error would enter
   //    the older scans' poses; without odometry the prediction is all there
   //    is to go on from.
@@ -64,6 +68,7 @@ RegisteredScan FrontEnd::register_scan(const LaserScan& scan) {
     const bool connected = out.registration.has_value() || (out.motion && !motion_prior_.with_odometry());
     local_submap_.add(scan, out.motion ? out.motion->u : Pose2(), connected);
   }
+  if (out.registration) range_noise_.add(*out.registration);
   return out;
 }
 

@@ -11,7 +11,9 @@
 //   3. the motion: the registration's where it succeeded; the prior's where
 //      it failed, claiming no more than the search window (σ = window / 3);
 //   4. the prior learns from what the laser measured;
-//   5. the local submap (scan_history.hpp) goes on from the motion.
+//   5. the local submap (scan_history.hpp) goes on from the motion, and the
+//      point noise's range-proportional part (range_noise_estimate.hpp) from
+//      the registration's residuals.
 //
 // Pure and deterministic; not thread-safe.
 #pragma once
@@ -21,6 +23,7 @@
 
 #include "lmf/front_end/motion_prior.hpp"
 #include "lmf/front_end/odometry_model.hpp"
+#include "lmf/front_end/range_noise_estimate.hpp"
 #include "lmf/front_end/scan_history.hpp"
 #include "lmf/geometry/pose2.hpp"
 #include "lmf/scan/laser_scan.hpp"
@@ -57,6 +60,9 @@ class FrontEnd {
   const MotionPrior& motion_prior() const { return motion_prior_; }
   const OdometryErrorModel& odometry_model() const { return motion_prior_.odometry_model(); }
   const ScanHistory& local_submap() const { return local_submap_; }
+  const RangeNoiseEstimate& range_noise() const { return range_noise_; }
+  // The point noise's range-proportional part the registration uses now.
+  double range_noise_per_m() const { return matching_.range_noise_per_m; }
 
  private:
   ScanMatcherConfig matching_;
@@ -64,6 +70,7 @@ class FrontEnd {
   // The last scans with their poses relative to the newest: relative to the
   // robot, so a new local map keeps it.
   ScanHistory local_submap_;
+  RangeNoiseEstimate range_noise_;
 };
 
 }  // namespace lmf

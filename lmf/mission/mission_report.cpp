@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "lmf/front_end/range_noise_estimate.hpp"
 #include "lmf/fusion/map_export.hpp"
 #include "lmf/io/trajectory.hpp"
 
@@ -262,6 +263,10 @@ void write_mission_outputs(const std::filesystem::path& out, const OfflineMissio
                       {"covariance_always_ok", r.covariance_always_ok},
                       {"first_covariance_problem", r.first_covariance_problem},
                       {"odometry_model", odometry_model_json(r.odometry_model, r.odometry_learning)},
+                      {"point_noise",
+                       {{"sigma_m", r.point_sigma_m},
+                        {"range_noise_per_m", r.range_noise_per_m},
+                        {"measured_over_matches", r.range_noise_matches}}},
                       {"local_map_consistency", consistency_json(r.local_map_consistency)},
                       {"scan_matches", r.scan_matches},
                       {"match_fallbacks", r.match_fallbacks},
@@ -425,6 +430,8 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
       << " matched increments, " << r.odometry_learning.downweighted << " downweighted as glitches)\n";
     const std::string bounds = describe_bounds(r.odometry_model, r.odometry_learning);
     if (!bounds.empty()) s << "WARNING: " << r.name << ": " << bounds << "\n";
+    s << r.name << " laser point noise: "
+      << describe_point_noise(r.point_sigma_m, r.range_noise_per_m, r.range_noise_matches) << "\n";
   }
   std::size_t seen_through = 0;
   for (const RobotResult& r : result.robots) seen_through += r.segments_seen_through;

@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <string>
 #include <unordered_set>
+#include <utility>
+#include <vector>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -105,6 +107,8 @@ void ScanMatcherConfig::validate() const {
   require(max_iterations >= 1, "max_iterations", max_iterations, ">= 1");
   require(min_correspondences >= 3, "min_correspondences", min_correspondences, ">= 3");
   require(std::isfinite(point_sigma_m) && point_sigma_m > 0.0, "point_sigma_m", point_sigma_m, "finite and > 0");
+  require(std::isfinite(range_noise_per_m) && range_noise_per_m >= 0.0, "range_noise_per_m", range_noise_per_m,
+          "finite and >= 0");
   require(std::isfinite(huber_k) && huber_k > 0.0, "huber_k", huber_k, "finite and > 0");
   require(std::isfinite(max_independent_points) && max_independent_points > 0.0, "max_independent_points",
           max_independent_points, "finite and > 0");
@@ -299,6 +303,48 @@ Eigen::Matrix3d checked_inverse_of_prior(const Pose2& u_hat, const Eigen::Matrix
   return Q_llt.solve(Eigen::Matrix3d::Identity());
 }
 
+// ScanMatch::range_noise_slope2 of B placed with x against A.
+std::optional<double> range_noise_evidence(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& B,
+                                           const Pose2& x, const ScanMatcherConfig& config) {
+  struct Residual {
+    double range2;
+    double abs_e;
+  };
+  std::vector<Residual> residuals;
+  residuals.reserve(B.size());
+  const Eigen::Matrix2d R = rotation(x.phi);
+  const Eigen::Vector2d t(x.x, x.y);
+  for (const Eigen::Vector2d& b : B) {
+    const Eigen::Vector2d q = t + R * b;
+    const int j = A.nearest(q, config.last_gate_m);
+    if (j < 0) continue;
+    const std::size_t k = static_cast<std::size_t>(j);
+    residuals.push_back({b.squaredNorm(), std::abs(A.normals()[k].dot(q - A.points()[k]))});
+  }
+  const std::size_t third = residuals.size() / 3;
+  if (third < 3 || static_cast<int>(residuals.size()) < config.min_correspondences) return std::nullopt;
+  std::sort(residuals.begin(), residuals.end(),
+            [](const Residual& a, const Residual& b) { return a.range2 < b.range2; });
+  // σ² from the MAD (1.4826 median |e|), and the mean r², of residuals[first, first + third).
+  const auto spread = [&](std::size_t first) {
+    std::vector<double> abs_e;
+    abs_e.reserve(third);
+    double range2 = 0.0;
+    for (std::size_t i = first; i < first + third; ++i) {
+      abs_e.push_back(residuals[i].abs_e);
+      range2 += residuals[i].range2;
+    }
+    const auto mid = abs_e.begin() + static_cast<std::ptrdiff_t>(third / 2);
+    std::nth_element(abs_e.begin(), mid, abs_e.end());
+    const double sigma = 1.4826 * *mid;
+    return std::pair{sigma * sigma, range2 / static_cast<double>(third)};
+  };
+  const auto [near_sigma2, near_range2] = spread(0);
+  const auto [far_sigma2, far_range2] = spread(residuals.size() - third);
+  if (far_range2 < 4.0 * near_range2) return std::nullopt;
+  return (far_sigma2 - near_sigma2) / (far_range2 - near_range2);
+}
+
 // Stage 2: Gauss–Newton of the maximum a posteriori problem from x0.
 std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& B, const Pose2& x0,
                                  const Pose2& u_hat, const Eigen::Matrix3d& Q_inv, const ScanMatcherConfig& config) {
@@ -315,10 +361,13 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
   Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
   Eigen::Matrix3d H_covariance = Eigen::Matrix3d::Zero();  // H with the calibrated laser term
   double gate = config.first_gate_m;
+  const double range_noise2 = config.range_noise_per_m * config.range_noise_per_m;
   constexpr int kIterationsPerGate = 5;
   int iterations_at_gate = 0;
   for (int it = 0; it < config.max_iterations; ++it) {
     Eigen::Matrix3d A_laser = Eigen::Matrix3d::Zero();
+    // A_laser with each point at its own σ_i (range_noise_per_m): σ² / σ_i² J_iᵀ J_i.
+    Eigen::Matrix3d A_laser_at_range = Eigen::Matrix3d::Zero();
     Eigen::Matrix3d A_unweighted = Eigen::Matrix3d::Zero();
     Eigen::Vector3d g_laser = Eigen::Vector3d::Zero();
     int matched = 0;
@@ -352,6 +401,7 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
       const double w = std::abs(e) <= huber ? 1.0 : huber / std::abs(e);
       const Eigen::Matrix3d JtJ = J.transpose() * J;
       A_laser.noalias() += w * JtJ;
+      A_laser_at_range.noalias() += w / (1.0 + range_noise2 * b.squaredNorm() / sigma2) * JtJ;
       A_unweighted += JtJ;
       g_laser.noalias() += w * e * J.transpose();
       sum_e2 += e * e;
@@ -379,14 +429,14 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
     const Eigen::Matrix3d widen = (Eigen::Matrix3d::Identity() + Lambda * C_m).inverse();
     const Eigen::Matrix3d Lambda_widened = symmetrised(widen * Lambda);
     out.match.laser_information = Lambda_widened;
-    // The covariance's laser term: σ² the larger of point_sigma_m² and the
-    // residuals' own (Huber-weighted) variance (residual_sigma).
+    // The covariance's laser term: each point at its own σ_i (range_noise_per_m),
+    // and σ² the larger of point_sigma_m² and the residuals' own (Huber-weighted)
+    // variance (residual_sigma); widened by C_m as Λ'.
     const double residual_sigma2 = config.residual_sigma && matched > 3 ? sum_we2 / (matched - 3) : 0.0;
     const double calibration = sigma2 / std::max(sigma2, residual_sigma2);
+    const Eigen::Matrix3d Lambda_at_range = calibration * laser_weight * A_laser_at_range;
     const Eigen::Matrix3d Lambda_calibrated =
-        calibration < 1.0
-            ? symmetrised((Eigen::Matrix3d::Identity() + calibration * Lambda * C_m).inverse() * calibration * Lambda)
-            : Lambda_widened;
+        symmetrised((Eigen::Matrix3d::Identity() + Lambda_at_range * C_m).inverse() * Lambda_at_range);
     const Pose2 r_pose = between(u_hat, x);
     const Eigen::Vector3d r(r_pose.x, r_pose.y, wrap_angle(r_pose.phi));
     const Eigen::Matrix3d J_r = prior_residual_jacobian(u_hat, x);
@@ -412,6 +462,7 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
       iterations_at_gate = 0;
     }
   }
+  out.match.range_noise_slope2 = range_noise_evidence(A, B, x, config);
   const Pose2 r_pose = between(u_hat, x);
   out.match.prior_residual = Eigen::Vector3d(r_pose.x, r_pose.y, wrap_angle(r_pose.phi));
   out.match.prior_distance2 = out.match.prior_residual.dot(Q_inv * out.match.prior_residual);

@@ -126,6 +126,17 @@ struct ScanMatcherConfig {
   int min_correspondences = 30;
   // Std of one point's distance to its line (m), and the Huber threshold in units of it.
   double point_sigma_m = 0.03;
+  // The match's covariance (what the local map's filter receives) takes
+  // each point at σ_i² = point_sigma_m² + (range_noise_per_m r)², r its range,
+  // as a laser's accuracy is stated (a constant, or a share of the range,
+  // whichever is larger). The estimate, and the laser information the odometry
+  // model learns with, keep point_sigma_m for every point (docs/results.md,
+  // "The point noise grows with the range"). When range_noise_from_residuals
+  // is set, the front end measures range_noise_per_m on the log itself from
+  // the registrations' residuals (lmf/front_end/range_noise_estimate.hpp), and
+  // this value holds until it has.
+  double range_noise_per_m = 0.0;
+  bool range_noise_from_residuals = true;
   double huber_k = 2.0;
   // When set, the match's covariance (what the local map's filter receives)
   // takes the laser term at σ² = max(point_sigma_m², Σ_i w_i e_i² / (N − 3)),
@@ -228,7 +239,8 @@ ScanPoints scan_points_by_kind(const LaserScan& scan, const ScanMatcherConfig& c
 struct ScanMatch {
   Pose2 x_AB;                    // the refined increment
   // Of its perturbation p (x_true = x_AB ⊕ p): (Λ'_r + J_rᵀ Q⁻¹ J_r)⁻¹, Λ'_r the
-  // laser term at the residuals' σ when larger than point_sigma_m (residual_sigma).
+  // laser term with each point at its σ_i (range_noise_per_m), and at the
+  // residuals' σ when larger than point_sigma_m (residual_sigma).
   Eigen::Matrix3d covariance;
   // The laser's own information about p at the optimum at point_sigma_m, Λ'
   // (widened by the model noise; singular where the scene does not constrain
@@ -244,6 +256,14 @@ struct ScanMatch {
   int correspondences = 0;       // matched points at the last iteration
   int iterations = 0;
   double rms_m = 0.0;            // RMS point-to-line distance of the matched points
+  // This match's own evidence of range_noise_per_m²: the matched points'
+  // residuals at the optimum, the nearest and the farthest third by range,
+  // (σ_far² − σ_near²) / (mean r²_far − mean r²_near), each σ the third's
+  // MAD-based std (robust to wrong pairings). Signed (noise alone makes it
+  // negative half the time where the range adds nothing); std::nullopt where
+  // the far third is not at least twice as far as the near one (the
+  // range-proportional part then at least quadruples) or too few points matched.
+  std::optional<double> range_noise_slope2;
   double search_score = 0.0;     // the correlative search's best score (mean likelihood, [0, 1])
   Pose2 search_pose;             // ... and its pose
   // The search's best pose lies on the outermost ring of its window

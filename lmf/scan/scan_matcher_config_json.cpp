@@ -27,6 +27,8 @@ void read_scan_matcher_config(io::JsonReader& reader, ScanMatcherConfig& config)
   reader.read("max_iterations", config.max_iterations, io::at_least(1.0));
   reader.read("min_correspondences", config.min_correspondences, io::at_least(3.0));
   reader.read("point_sigma_m", config.point_sigma_m, io::positive());
+  reader.read("range_noise_per_m", config.range_noise_per_m, io::non_negative());
+  reader.read("range_noise_from_residuals", config.range_noise_from_residuals);
   reader.read("huber_k", config.huber_k, io::positive());
   reader.read("residual_sigma", config.residual_sigma);
   reader.read("residual_correlation", config.residual_correlation);

@@ -12,6 +12,9 @@ void LaserConfig::validate() const {
   if (!(range_noise_sigma_m >= 0.0) || range_noise_sigma_m > 1.0) {
     throw std::invalid_argument("LaserConfig: range_noise_sigma_m must be in [0, 1]");
   }
+  if (!(range_noise_per_m >= 0.0) || range_noise_per_m > 0.1) {
+    throw std::invalid_argument("LaserConfig: range_noise_per_m must be in [0, 0.1]");
+  }
   if (!(max_range_m > 0.0) || max_range_m > 1000.0) throw std::invalid_argument("LaserConfig: max_range_m must be in (0, 1000]");
 }
 
@@ -40,7 +43,8 @@ LaserScan simulate_scan(const WallIndex& walls, const Pose2& x_WR, const LaserCo
       }
     }
     const bool hit = range < config.max_range_m;
-    const double noise = config.range_noise_sigma_m > 0.0 ? config.range_noise_sigma_m * rng.normal() : 0.0;
+    const double sigma = std::hypot(config.range_noise_sigma_m, config.range_noise_per_m * range);
+    const double noise = config.range_noise_sigma_m > 0.0 || config.range_noise_per_m > 0.0 ? sigma * rng.normal() : 0.0;
     scan.ranges_m[i] = hit ? std::clamp(range + noise, 0.0, config.max_range_m) : config.max_range_m;
   }
   return scan;

@@ -129,6 +129,7 @@ json config_json(const MissionConfig& c) {
         {"angle_min_rad", -0.5 * 3.14159265358979323846},
         {"angle_increment_rad", beam_increment_for_180deg(c.laser.num_beams)},
         {"range_noise_sigma_m", fixed(c.laser.range_noise_sigma_m)},
+        {"range_noise_per_m", fixed(c.laser.range_noise_per_m)},
         {"max_range_m", fixed(c.laser.max_range_m)}}},
       {"motion",
        {{"speed_mps", fixed(c.motion.speed_mps)},
@@ -235,8 +236,8 @@ void write_mission(const Mission& mission, const std::filesystem::path& dir) {
     std::snprintf(line, sizeof line, "lmf-sim seed %llu robot %d: FLASER pose fields = noisy odometry",
                   static_cast<unsigned long long>(c.seed), run.id);
     options.header_comments.emplace_back(line);
-    std::snprintf(line, sizeof line, "max_range_m %.3f (a reading of max_range_m means no return); range noise %.3f m",
-                  c.laser.max_range_m, c.laser.range_noise_sigma_m);
+    std::snprintf(line, sizeof line, "max_range_m %.3f (a reading of max_range_m means no return); range noise %.3f m + %.4f m/m",
+                  c.laser.max_range_m, c.laser.range_noise_sigma_m, c.laser.range_noise_per_m);
     options.header_comments.emplace_back(line);
     io::write_carmen_log(dir / (name + ".log"), run.scans, options);
 

@@ -28,7 +28,8 @@ TEST(LocalMapConfigJson, ReadsKnownKeysAndTheExtractionSection) {
           "observation_angular_noise_rad": 0.0, "joint_compatibility_restarts": 0,
           "observation_end_noise_m": 0.04,
           "extraction": {"split_distance_m": 0.08},
-          "scan_matching": {"enabled": true, "point_sigma_m": 0.05, "max_iterations": 12},
+          "scan_matching": {"enabled": true, "point_sigma_m": 0.05, "max_iterations": 12,
+                            "range_noise_per_m": 0.01, "range_noise_from_residuals": false},
           "see_through": {"enabled": false, "margin_m": 0.4, "min_beams": 8, "min_coverage": 0.5}})",
       "test.json");
   LocalMapConfig config;
@@ -44,6 +45,8 @@ TEST(LocalMapConfigJson, ReadsKnownKeysAndTheExtractionSection) {
   EXPECT_TRUE(config.scan_matching.enabled);
   EXPECT_EQ(config.scan_matching.point_sigma_m, 0.05);
   EXPECT_EQ(config.scan_matching.max_iterations, 12);
+  EXPECT_EQ(config.scan_matching.range_noise_per_m, 0.01);
+  EXPECT_FALSE(config.scan_matching.range_noise_from_residuals);
   EXPECT_EQ(config.scan_matching.last_gate_m, ScanMatcherConfig{}.last_gate_m);
   EXPECT_FALSE(config.see_through.enabled);
   EXPECT_EQ(config.see_through.margin_m, 0.4);
@@ -63,6 +66,8 @@ TEST(LocalMapConfigJson, RejectsUnknownKeysAndBadValuesByName) {
   EXPECT_NE(error_of(R"({"scan_matching": {"gate": 1}})").find("gate"), std::string::npos);
   EXPECT_NE(error_of(R"({"scan_matching": {"last_gate_m": 5.0}})").find("first_gate_m"), std::string::npos);
   EXPECT_NE(error_of(R"({"scan_matching": {"prior_alpha": 0}})").find("prior_alpha"), std::string::npos);
+  EXPECT_NE(error_of(R"({"scan_matching": {"range_noise_per_m": -0.01}})").find("range_noise_per_m"),
+            std::string::npos);
   EXPECT_NE(error_of(R"({"see_through": {"bogus": 1}})").find("bogus"), std::string::npos);
   EXPECT_NE(error_of(R"({"see_through": {"min_beams": 0}})").find("min_beams"), std::string::npos);
   EXPECT_NE(error_of(R"({"see_through": {"min_coverage": 2}})").find("min_coverage"), std::string::npos);

@@ -188,6 +188,63 @@ TEST(ScanMatcher, ResidualSigmaWidensTheCovarianceOnlyForScansNoisierThanConfigu
   }
 }
 
+// range_noise_per_m: the covariance takes each point at σ_i² = point_sigma_m² +
+// (range_noise_per_m r)², so far points claim less; the estimate and the laser
+// information the odometry model learns with are those of point_sigma_m alone.
+TEST(ScanMatcher, APointNoiseGrowingWithRangeWidensTheCovarianceNotTheEstimate) {
+  const Pose2 x_WA(0.0, 0.0, 0.1);
+  const Pose2 x_WB(0.8, 0.3, 0.25);
+  const Pose2 u_hat = compose(between(x_WA, x_WB), Pose2(0.05, -0.03, 0.02));
+  const Eigen::Matrix3d Q = odometry_like_covariance(u_hat);
+  std::mt19937 rng(5);
+  const LaserScan A = testing::make_scan(room(), x_WA, 361, 80.0, 0.01, &rng);
+  const LaserScan B = testing::make_scan(room(), x_WB, 361, 80.0, 0.01, &rng);
+  ScanMatcherConfig constant;
+  ScanMatcherConfig at_range = constant;
+  at_range.range_noise_per_m = 0.01;  // 1 % of the range: σ_i 0.03 m at 1 m, 0.10 m at 10 m
+  const auto [a, b] = match_under_both(A, B, u_hat, Q, constant, at_range);
+  ASSERT_TRUE(a && b);
+  ASSERT_TRUE(symmetric_positive_definite(b->covariance));
+  EXPECT_TRUE(is_near(a->x_AB, b->x_AB, 1e-12, 1e-12));
+  EXPECT_TRUE(a->laser_information.isApprox(b->laser_information, 1e-12));
+  // The heading leans most on the far walls (the lever arm): it widens most.
+  EXPECT_GT(b->covariance(0, 0), a->covariance(0, 0));
+  EXPECT_GT(b->covariance(1, 1), a->covariance(1, 1));
+  EXPECT_GT(b->covariance(2, 2), 1.5 * a->covariance(2, 2));
+}
+
+// ScanMatch::range_noise_slope2: the farthest third of the residuals spreads
+// wider than the nearest third; for a laser whose noise does not grow with
+// range the two thirds spread alike. The residual is the noise along the
+// wall's normal, and a hall's long walls are seen obliquely: a 1 %-of-range
+// laser shows 0.6-1.7e-5 here (a tenth of k² = 1e-4), a constant one 1e-7.
+TEST(ScanMatcher, EachMatchMeasuresHowItsResidualsGrowWithRange) {
+  // A hall 30 m x 8 m seen from near one end: ranges from 1 to 25 m.
+  testing::SyntheticWorld hall;
+  const Eigen::Vector2d c[4] = {{-2, -4}, {28, -4}, {28, 4}, {-2, 4}};
+  for (int i = 0; i < 4; ++i) hall.walls.push_back({c[i], c[(i + 1) % 4]});
+  hall.walls.push_back({{10.0, 4.0}, {10.0, 3.0}});
+  const Pose2 x_WA(0.0, 0.5, 0.05);
+  const Pose2 x_WB(0.5, 0.4, 0.0);
+  const Pose2 u_hat = between(x_WA, x_WB);
+  const Eigen::Matrix3d Q = odometry_like_covariance(u_hat);
+  const ScanMatcherConfig config;
+  const auto slope2 = [&](double noise_per_m, unsigned seed) {
+    std::mt19937 rng(seed);
+    const LaserScan A = testing::make_scan(hall, x_WA, 361, 80.0, 0.005, &rng, noise_per_m);
+    const LaserScan B = testing::make_scan(hall, x_WB, 361, 80.0, 0.005, &rng, noise_per_m);
+    const std::optional<ScanMatch> m =
+        match_scans(ReferenceScan::from(A, config), scan_points(B, config), u_hat, Q, config);
+    EXPECT_TRUE(m && m->range_noise_slope2);
+    return m && m->range_noise_slope2 ? *m->range_noise_slope2 : std::nan("");
+  };
+  for (const unsigned seed : {1U, 2U, 3U}) {
+    EXPECT_GT(slope2(0.01, seed), 3e-6) << seed;
+    EXPECT_LT(slope2(0.01, seed), 1e-4) << seed;
+    EXPECT_LT(std::abs(slope2(0.0, seed)), 1e-6) << seed;
+  }
+}
+
 // residual_correlation: residuals that follow each other along the scan (a wall
 // bent, or seen through a window, over many beams) are fewer independent
 // measurements than points. Their lag-1 correlation ρ gives N (1 − ρ)/(1 + ρ)

@@ -54,9 +54,11 @@ inline std::optional<double> ray_disc(const Eigen::Vector2d& o, const Eigen::Vec
 }
 
 // A 180° scan (from -pi/2, counter-clockwise) taken at x_WR. Beams that hit
-// nothing read max_range_m. Noise: N(0, noise_m) on every hit, from `rng`.
+// nothing read max_range_m. Noise: N(0, noise_m² + (noise_per_m r)²) on every
+// hit at range r, from `rng`.
 inline LaserScan make_scan(const SyntheticWorld& world, const Pose2& x_WR = {}, std::size_t num_beams = 361,
-                           double max_range_m = 80.0, double noise_m = 0.0, std::mt19937* rng = nullptr) {
+                           double max_range_m = 80.0, double noise_m = 0.0, std::mt19937* rng = nullptr,
+                           double noise_per_m = 0.0) {
   LaserScan scan;
   scan.odometry = x_WR;
   scan.angle_min_rad = -std::numbers::pi / 2.0;
@@ -79,7 +81,7 @@ inline LaserScan make_scan(const SyntheticWorld& world, const Pose2& x_WR = {}, 
       scan.ranges_m[i] = max_range_m;
       continue;
     }
-    if (rng != nullptr && noise_m > 0.0) best += noise_m * normal(*rng);
+    if (rng != nullptr && (noise_m > 0.0 || noise_per_m > 0.0)) best += std::hypot(noise_m, noise_per_m * best) * normal(*rng);
     scan.ranges_m[i] = std::max(0.0, best);
   }
   return scan;

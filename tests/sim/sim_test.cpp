@@ -257,6 +257,35 @@ TEST(Laser, NoiseHasTheConfiguredSpreadAndDiscsOcclude) {
   EXPECT_EQ(scan.ranges_m[0], config.max_range_m);  // straight right: no wall, no return
 }
 
+// range_noise_per_m adds a part proportional to the range, in quadrature:
+// σ(r)² = range_noise_sigma_m² + (range_noise_per_m r)².
+TEST(Laser, NoiseGrowsWithTheRangeWhenConfigured) {
+  LaserConfig config;
+  config.range_noise_sigma_m = 0.01;
+  config.range_noise_per_m = 0.01;
+  Rng rng(4);
+  for (const double wall_m : {2.0, 20.0}) {
+    const WallIndex index({Wall{{wall_m, 40.0}, {wall_m, -40.0}}});
+    double sum2 = 0.0;
+    int n = 0;
+    for (int k = 0; k < 50; ++k) {
+      const LaserScan scan = simulate_scan(index, Pose2(), config, {}, rng);
+      for (std::size_t i = 170; i <= 190; ++i) {
+        const double range = wall_m / std::cos(scan.beam_angle(i));
+        const double err = scan.ranges_m[i] - range;
+        sum2 += err * err / (1e-4 + 1e-4 * range * range);  // in units of σ(r)²
+        ++n;
+      }
+    }
+    EXPECT_NEAR(std::sqrt(sum2 / n), 1.0, 0.1) << wall_m;
+  }
+  LaserConfig bad;
+  bad.range_noise_per_m = -0.01;
+  EXPECT_THROW(bad.validate(), std::invalid_argument);
+  bad.range_noise_per_m = 0.2;
+  EXPECT_THROW(bad.validate(), std::invalid_argument);
+}
+
 TEST(Route, PathsStayAwayFromWallsNeverCrossThemAndTurnSmoothly) {
   MotionConfig motion;
   for (uint64_t seed : {1u, 2u, 5u}) {

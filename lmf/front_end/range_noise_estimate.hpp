@@ -1,0 +1,44 @@
+// The range-proportional part of the laser's point noise (ScanMatcherConfig::
+// range_noise_per_m) measured on the log itself (docs/design.md §10, "The
+// point noise grows with the range"). A laser states its accuracy as a
+// constant or a share of the range, and a log rarely says which laser wrote
+// it; the registrations' residuals do. Each registration gives its own
+// evidence of range_noise_per_m² (ScanMatch::range_noise_slope2: how much
+// wider the farthest third of its residuals spreads than the nearest third,
+// per unit of r²); the estimate is the square root of the median of the last
+// kWindow of them, never below 0, once kMinMatches are in.
+//
+// Pure and deterministic; not thread-safe.
+#pragma once
+
+#include <cstddef>
+#include <deque>
+#include <optional>
+#include <string>
+
+#include "lmf/scan/scan_matcher.hpp"
+
+namespace lmf {
+
+class RangeNoiseEstimate {
+ public:
+  // About 50 m of travel at the datasets' half-metre spacing: the laser, not
+  // the place, is what is measured.
+  static constexpr std::size_t kWindow = 100;
+  static constexpr std::size_t kMinMatches = 20;
+
+  void add(const ScanMatch& match);
+  // range_noise_per_m (m per m); std::nullopt before kMinMatches matches gave evidence.
+  std::optional<double> range_noise_per_m() const;
+  std::size_t matches() const { return matches_; }  // that gave evidence, in all
+
+ private:
+  std::deque<double> slopes2_;
+  std::size_t matches_ = 0;
+};
+
+// "0.030 m (+) 0.0040 x range (measured over 770 matches)", or "(configured)"
+// where no match measured it: the point noise a summary prints.
+std::string describe_point_noise(double point_sigma_m, double range_noise_per_m, std::size_t measured_over_matches);
+
+}  // namespace lmf

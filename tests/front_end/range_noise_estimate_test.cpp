@@ -1,0 +1,72 @@
+#include "lmf/front_end/range_noise_estimate.hpp"
+
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "scan/synthetic_scan.hpp"
+#include "lmf/front_end/front_end.hpp"
+
+namespace lmf {
+namespace {
+
+ScanMatch with_slope2(std::optional<double> slope2) {
+  ScanMatch m;
+  m.range_noise_slope2 = slope2;
+  return m;
+}
+
+TEST(RangeNoiseEstimate, IsTheRootOfTheMedianOnceEnoughMatchesGaveEvidence) {
+  RangeNoiseEstimate estimate;
+  for (std::size_t i = 0; i + 1 < RangeNoiseEstimate::kMinMatches; ++i) estimate.add(with_slope2(4e-6));
+  estimate.add(with_slope2(std::nullopt));  // no evidence: not counted
+  EXPECT_FALSE(estimate.range_noise_per_m());
+  estimate.add(with_slope2(1.0));  // an outlier moves a median by one place only
+  ASSERT_TRUE(estimate.range_noise_per_m());
+  EXPECT_DOUBLE_EQ(*estimate.range_noise_per_m(), 0.002);
+  EXPECT_EQ(estimate.matches(), RangeNoiseEstimate::kMinMatches);
+}
+
+TEST(RangeNoiseEstimate, IsNeverBelowZeroAndForgetsBeyondItsWindow) {
+  RangeNoiseEstimate estimate;
+  for (std::size_t i = 0; i < RangeNoiseEstimate::kWindow; ++i) estimate.add(with_slope2(-1e-6));
+  EXPECT_EQ(*estimate.range_noise_per_m(), 0.0);
+  for (std::size_t i = 0; i < RangeNoiseEstimate::kWindow; ++i) estimate.add(with_slope2(9e-6));
+  EXPECT_DOUBLE_EQ(*estimate.range_noise_per_m(), 0.003);
+  EXPECT_EQ(estimate.matches(), 2 * RangeNoiseEstimate::kWindow);
+}
+
+// The front end measures the laser it is given: a robot driving down a 30 m
+// hall with a laser whose noise is 1 % of the range, and with one whose noise
+// is the same everywhere.
+TEST(RangeNoiseEstimate, TheFrontEndMeasuresARangeProportionalLaserAndNotAConstantOne) {
+  testing::SyntheticWorld hall;
+  const Eigen::Vector2d c[4] = {{-2, -4}, {28, -4}, {28, 4}, {-2, 4}};
+  for (int i = 0; i < 4; ++i) hall.walls.push_back({c[i], c[(i + 1) % 4]});
+  for (double x = 3.0; x < 26.0; x += 6.0) hall.walls.push_back({{x, 4.0}, {x, 3.2}});
+  const auto measured = [&](double noise_m, double noise_per_m) {
+    MotionPriorConfig config;
+    config.odometry_prior = OdometryErrorModel::proportional(0.08, 0.08, 0.01, 0.001, 0.0005);
+    FrontEnd front_end(config);
+    std::mt19937 rng(3);
+    for (int k = 0; k < 60; ++k) {
+      const Pose2 truth(0.3 * k, 0.2 * std::sin(0.2 * k), 0.03 * std::sin(0.3 * k));
+      LaserScan scan = testing::make_scan(hall, truth, 361, 80.0, noise_m, &rng, noise_per_m);
+      scan.odometry = truth;
+      scan.utime = 200000 * static_cast<int64_t>(k);
+      front_end.register_scan(scan);
+    }
+    EXPECT_GE(front_end.range_noise().matches(), RangeNoiseEstimate::kMinMatches);
+    return front_end.range_noise_per_m();
+  };
+  EXPECT_GT(measured(0.005, 0.01), 0.003);
+  EXPECT_LT(measured(0.02, 0.0), 0.001);
+  // Measured or not, the first scans match with the configuration's value.
+  MotionPriorConfig fixed;
+  fixed.scan_matching.range_noise_from_residuals = false;
+  EXPECT_EQ(FrontEnd(fixed).range_noise_per_m(), 0.0);
+}
+
+}  // namespace
+}  // namespace lmf
