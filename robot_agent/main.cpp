@@ -112,7 +112,9 @@ int main(int argc, char** argv) {
           << kProgram << " " << robot_id << ": laser point noise: "
           << lmf::describe_point_noise(agent.local_map().config().scan_matching.point_sigma_m,
                                        agent.local_map().front_end().range_noise_per_m(),
-                                       agent.local_map().front_end().range_noise().matches())
+                                       agent.local_map().front_end().range_noise_measured()
+                                           ? agent.local_map().front_end().range_noise().matches()
+                                           : 0)
           << "\n";
   const std::string bounds =
       lmf::describe_bounds(agent.local_map().odometry_model(), agent.local_map().odometry_learning_stats());

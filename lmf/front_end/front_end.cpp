@@ -30,7 +30,8 @@ RegisteredScan FrontEnd::register_scan(const LaserScan& scan) {
   // 2. Registration against the local submap, the prior as the centre of the
   //    search window and as the refinement's prior, the window escalating
   //    when the motion did more than it holds (Q is singular only for a
-  //    standing robot with zero noise floors: no prior, no registration).
+  //    standing robot with zero noise floors: no prior, no registration);
+  //    its covariance with the point noise measured so far (stage 5).
   if (matching_.range_noise_from_residuals) {
     if (const std::optional<double> per_m = range_noise_.range_noise_per_m()) matching_.range_noise_per_m = *per_m;
   }
@@ -59,16 +60,16 @@ RegisteredScan FrontEnd::register_scan(const LaserScan& scan) {
   out.odometry_learning_weight = motion_prior_.advance(scan.utime, scan.odometry, prior,
                                                        out.motion.value_or(MotionIncrement{}),
                                                        out.registration ? &*out.registration : nullptr);
-  // 5. The local submap goes on from a registered motion, and the point noise
-  //    from its residuals. After the odometry's
-  //    alone it restarts with this scan, as the odometry's error would enter
-  //    the older scans' poses; without odometry the prediction is all there
-  //    is to go on from.
+  // 5. The local submap goes on from a registered motion. After the
+  //    odometry's alone it restarts with this scan, as the odometry's error
+  //    would enter the older scans' poses; without odometry the prediction
+  //    is all there is to go on from. The point noise's measure takes the
+  //    registration's residuals.
   if (matching_.enabled) {
     const bool connected = out.registration.has_value() || (out.motion && !motion_prior_.with_odometry());
     local_submap_.add(scan, out.motion ? out.motion->u : Pose2(), connected);
   }
-  if (out.registration) range_noise_.add(*out.registration);
+  if (out.registration && matching_.range_noise_from_residuals) range_noise_.add(*out.registration);
   return out;
 }
 

@@ -61,8 +61,10 @@ class FrontEnd {
   const OdometryErrorModel& odometry_model() const { return motion_prior_.odometry_model(); }
   const ScanHistory& local_submap() const { return local_submap_; }
   const RangeNoiseEstimate& range_noise() const { return range_noise_; }
-  // The point noise's range-proportional part the registration uses now.
+  // The point noise's range-proportional part the registration uses now, and
+  // whether it was measured (range_noise_estimate.hpp) or is the configured one.
   double range_noise_per_m() const { return matching_.range_noise_per_m; }
+  bool range_noise_measured() const { return range_noise_.range_noise_per_m().has_value(); }
 
  private:
   ScanMatcherConfig matching_;

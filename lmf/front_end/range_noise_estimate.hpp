@@ -8,6 +8,13 @@
 // per unit of r²); the estimate is the square root of the median of the last
 // kWindow of them, never below 0, once kMinMatches are in.
 //
+// Each registration's value under-reads a laser whose noise is a large share
+// of the range: residuals beyond the refinement's last gate (0.25 m) are not
+// pairings, so the far third's spread is cut (the simulator at 0.5 % / 1 % of
+// the range measures 0.0023 / 0.0031). It also includes the reference points'
+// own noise and their normals' error at range: it is the spread the
+// covariance needs, not the laser's data sheet.
+//
 // Pure and deterministic; not thread-safe.
 #pragma once
 
@@ -25,6 +32,8 @@ class RangeNoiseEstimate {
   // About 50 m of travel at the datasets' half-metre spacing: the laser, not
   // the place, is what is measured.
   static constexpr std::size_t kWindow = 100;
+  // A fifth of the window: the median of 20 values is off by at most its
+  // 40th-60th percentile band.
   static constexpr std::size_t kMinMatches = 20;
 
   void add(const ScanMatch& match);
@@ -38,7 +47,8 @@ class RangeNoiseEstimate {
 };
 
 // "0.030 m (+) 0.0040 x range (measured over 770 matches)", or "(configured)"
-// where no match measured it: the point noise a summary prints.
+// where measured_over_matches is 0: the point noise a summary prints (the two
+// parts add in quadrature).
 std::string describe_point_noise(double point_sigma_m, double range_noise_per_m, std::size_t measured_over_matches);
 
 }  // namespace lmf

@@ -113,7 +113,7 @@ MissionResult OfflineMission::run() {
     const FrontEnd& front_end = agents_[i].local_map.front_end();
     r.point_sigma_m = agents_[i].local_map.config().scan_matching.point_sigma_m;
     r.range_noise_per_m = front_end.range_noise_per_m();
-    r.range_noise_matches = front_end.range_noise().matches();
+    r.range_noise_matches = front_end.range_noise_measured() ? front_end.range_noise().matches() : 0;
     // Single matches are chains of one.
     for (const eval::ChainError& e : eval::chain_errors(agents_[i].matched_steps, agents_[i].reference_poses, 1)) {
       r.match_nees.push_back(e.nees);

@@ -96,7 +96,7 @@ struct RobotResult {
   OdometryLearningStats odometry_learning;
   // The laser's point noise the registration used at the end: σ_i² =
   // point_sigma_m² + (range_noise_per_m r)², and how many registrations
-  // measured range_noise_per_m (0: the configuration's value).
+  // measured range_noise_per_m (0: the configuration's value, not measured).
   double point_sigma_m = 0.0;
   double range_noise_per_m = 0.0;
   std::size_t range_noise_matches = 0;

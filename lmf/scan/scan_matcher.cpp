@@ -341,6 +341,8 @@ std::optional<double> range_noise_evidence(const ReferenceScan& A, const std::ve
   };
   const auto [near_sigma2, near_range2] = spread(0);
   const auto [far_sigma2, far_range2] = spread(residuals.size() - third);
+  // The far third at least twice as far as the near one: its
+  // range-proportional variance at least four times the near third's.
   if (far_range2 < 4.0 * near_range2) return std::nullopt;
   return (far_sigma2 - near_sigma2) / (far_range2 - near_range2);
 }

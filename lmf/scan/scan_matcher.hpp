@@ -34,7 +34,9 @@
 // Λ' = (Λ⁻¹ + C_m)⁻¹ = (I + Λ C_m)⁻¹ Λ, which stays defined where Λ is singular
 // (a corridor). Gauss–Newton on x ← x ⊕ δ then solves the maximum a posteriori
 // problem of that laser term and the prior r(x) = between(û, x) ~ N(0, Q); the
-// result's covariance is (Λ' + J_rᵀ Q⁻¹ J_r)⁻¹ at the optimum. The
+// result's covariance is (Λ'_r + J_rᵀ Q⁻¹ J_r)⁻¹ at the optimum, Λ'_r the same
+// laser term with each point at its own σ_i (range_noise_per_m; Λ' where that
+// is 0). The
 // correspondence gate starts at first_gate_m and halves each time the estimate
 // settles, down to last_gate_m.
 //
@@ -145,7 +147,8 @@ struct ScanMatcherConfig {
   // one at long range, clutter) reports a wider covariance. The estimate
   // itself, and the laser information the odometry model learns with, keep
   // point_sigma_m. Off by default (docs/results.md, "The match's covariance
-  // from its residuals").
+  // from its residuals"). With range_noise_per_m as well, it scales every
+  // σ_i² by the same factor, and a range-grown spread counts twice.
   bool residual_sigma = false;
   // When set, the matched points count as N (1 − ρ) / (1 + ρ) independent
   // ones (an AR(1) sequence along the scan), ρ ∈ [0, 0.99] the lag-1
@@ -257,7 +260,8 @@ struct ScanMatch {
   int iterations = 0;
   double rms_m = 0.0;            // RMS point-to-line distance of the matched points
   // This match's own evidence of range_noise_per_m²: the matched points'
-  // residuals at the optimum, the nearest and the farthest third by range,
+  // residuals at the optimum, the nearest and the farthest third by range (the
+  // middle third keeps the two apart),
   // (σ_far² − σ_near²) / (mean r²_far − mean r²_near), each σ the third's
   // MAD-based std (robust to wrong pairings). Signed (noise alone makes it
   // negative half the time where the range adds nothing); std::nullopt where

@@ -31,10 +31,14 @@ TEST(RangeNoiseEstimate, IsTheRootOfTheMedianOnceEnoughMatchesGaveEvidence) {
 TEST(RangeNoiseEstimate, IsNeverBelowZeroAndForgetsBeyondItsWindow) {
   RangeNoiseEstimate estimate;
   for (std::size_t i = 0; i < RangeNoiseEstimate::kWindow; ++i) estimate.add(with_slope2(-1e-6));
+  ASSERT_TRUE(estimate.range_noise_per_m());
   EXPECT_EQ(*estimate.range_noise_per_m(), 0.0);
-  for (std::size_t i = 0; i < RangeNoiseEstimate::kWindow; ++i) estimate.add(with_slope2(9e-6));
+  // Just over half the window new: the median is a new value only where the
+  // oldest ones were forgotten.
+  const std::size_t newer = RangeNoiseEstimate::kWindow / 2 + 1;
+  for (std::size_t i = 0; i < newer; ++i) estimate.add(with_slope2(9e-6));
   EXPECT_DOUBLE_EQ(*estimate.range_noise_per_m(), 0.003);
-  EXPECT_EQ(estimate.matches(), 2 * RangeNoiseEstimate::kWindow);
+  EXPECT_EQ(estimate.matches(), RangeNoiseEstimate::kWindow + newer);
 }
 
 // The front end measures the laser it is given: a robot driving down a 30 m
@@ -45,8 +49,9 @@ TEST(RangeNoiseEstimate, TheFrontEndMeasuresARangeProportionalLaserAndNotAConsta
   const Eigen::Vector2d c[4] = {{-2, -4}, {28, -4}, {28, 4}, {-2, 4}};
   for (int i = 0; i < 4; ++i) hall.walls.push_back({c[i], c[(i + 1) % 4]});
   for (double x = 3.0; x < 26.0; x += 6.0) hall.walls.push_back({{x, 4.0}, {x, 3.2}});
-  const auto measured = [&](double noise_m, double noise_per_m) {
+  const auto measured = [&](double noise_m, double noise_per_m, const ScanMatcherConfig& matching = {}) {
     MotionPriorConfig config;
+    config.scan_matching = matching;
     config.odometry_prior = OdometryErrorModel::proportional(0.08, 0.08, 0.01, 0.001, 0.0005);
     FrontEnd front_end(config);
     std::mt19937 rng(3);
@@ -57,15 +62,20 @@ TEST(RangeNoiseEstimate, TheFrontEndMeasuresARangeProportionalLaserAndNotAConsta
       scan.utime = 200000 * static_cast<int64_t>(k);
       front_end.register_scan(scan);
     }
-    EXPECT_GE(front_end.range_noise().matches(), RangeNoiseEstimate::kMinMatches);
+    EXPECT_EQ(front_end.range_noise_measured(), matching.range_noise_from_residuals);
+    EXPECT_EQ(front_end.range_noise().matches() >= RangeNoiseEstimate::kMinMatches, matching.range_noise_from_residuals);
     return front_end.range_noise_per_m();
   };
-  EXPECT_GT(measured(0.005, 0.01), 0.003);
+  const double at_half_percent = measured(0.005, 0.005);
+  const double at_one_percent = measured(0.005, 0.01);
+  EXPECT_GT(at_half_percent, 0.001);
+  EXPECT_GT(at_one_percent, 1.2 * at_half_percent) << "more noise at range measures more";
   EXPECT_LT(measured(0.02, 0.0), 0.001);
-  // Measured or not, the first scans match with the configuration's value.
-  MotionPriorConfig fixed;
-  fixed.scan_matching.range_noise_from_residuals = false;
-  EXPECT_EQ(FrontEnd(fixed).range_noise_per_m(), 0.0);
+  // Not measured where the configuration says so: its value holds throughout.
+  ScanMatcherConfig fixed;
+  fixed.range_noise_from_residuals = false;
+  fixed.range_noise_per_m = 0.007;
+  EXPECT_EQ(measured(0.005, 0.01, fixed), 0.007);
 }
 
 }  // namespace

@@ -71,6 +71,10 @@ TEST(OfflineMission, SimulatedTwoRobotMissionJoinsBySightingAndMaps) {
     EXPECT_EQ(r.trajectory.size(), r.scans);  // every scan has a final pose
     EXPECT_EQ(r.local_maps_fused, r.local_maps_shipped);
     EXPECT_TRUE(r.covariance_always_ok) << r.first_covariance_problem;
+    // The simulator's laser has the same noise at every range: measured so.
+    EXPECT_GT(r.range_noise_matches, 0U);
+    EXPECT_LT(r.range_noise_per_m, 0.001);
+    EXPECT_GT(r.point_sigma_m, 0.0);
   }
   EXPECT_TRUE(result.global_covariance_always_ok);
   const auto score = score_mission(result, mission.inputs(), mission.global_map());
