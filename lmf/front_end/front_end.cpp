@@ -25,6 +25,7 @@ FrontEnd::FrontEnd(const MotionPriorConfig& config)
 
 RegisteredScan FrontEnd::register_scan(const LaserScan& scan) {
   RegisteredScan out;
+  ScanPoints points;  // the scan's, where it is registered
   // 1. The motion prior.
   const std::optional<MotionPrior::Prediction> prior = motion_prior_.predict(scan.utime, scan.odometry);
   // 2. Registration against the local submap, the prior as the centre of the
@@ -38,7 +39,8 @@ RegisteredScan FrontEnd::register_scan(const LaserScan& scan) {
   if (prior && matching_.enabled && !local_submap_.empty()) {
     out.registration_tried = true;
     if (Eigen::LLT<Eigen::Matrix3d>(prior->motion.Q).info() == Eigen::Success) {
-      Registration registration = register_escalating(local_submap_.reference(), scan_points_by_kind(scan, matching_),
+      points = scan_points_by_kind(scan, matching_);
+      Registration registration = register_escalating(local_submap_.reference(), points,
                                                       prior->motion.u, prior->motion.Q, matching_);
       out.registration = std::move(registration.match);
       out.search_escalated = registration.search_escalated;
@@ -60,16 +62,21 @@ RegisteredScan FrontEnd::register_scan(const LaserScan& scan) {
   out.odometry_learning_weight = motion_prior_.advance(scan.utime, scan.odometry, prior,
                                                        out.motion.value_or(MotionIncrement{}),
                                                        out.registration ? &*out.registration : nullptr);
-  // 5. The local submap goes on from a registered motion. After the
-  //    odometry's alone it restarts with this scan, as the odometry's error
-  //    would enter the older scans' poses; without odometry the prediction
-  //    is all there is to go on from. The point noise's measure takes the
-  //    registration's residuals.
+  // 5. The point noise's measure takes the registration's residuals: the
+  //    points its estimate used (without the small objects where they moved)
+  //    against the reference it was registered to. The local submap goes on
+  //    from a registered motion. After the odometry's alone it restarts with
+  //    this scan, as the odometry's error would enter the older scans' poses;
+  //    without odometry the prediction is all there is to go on from.
+  if (out.registration && matching_.range_noise_from_residuals) {
+    range_noise_.add(range_noise_evidence(local_submap_.reference(),
+                                          out.registration->objects_moving ? points.structure : points.all,
+                                          out.registration->x_AB, matching_));
+  }
   if (matching_.enabled) {
     const bool connected = out.registration.has_value() || (out.motion && !motion_prior_.with_odometry());
     local_submap_.add(scan, out.motion ? out.motion->u : Pose2(), connected);
   }
-  if (out.registration && matching_.range_noise_from_residuals) range_noise_.add(*out.registration);
   return out;
 }
 

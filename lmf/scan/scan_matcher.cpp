@@ -7,7 +7,6 @@
 #include <stdexcept>
 #include <string>
 #include <unordered_set>
-#include <utility>
 #include <vector>
 
 #include <Eigen/Cholesky>
@@ -303,50 +302,6 @@ Eigen::Matrix3d checked_inverse_of_prior(const Pose2& u_hat, const Eigen::Matrix
   return Q_llt.solve(Eigen::Matrix3d::Identity());
 }
 
-// ScanMatch::range_noise_slope2 of B placed with x against A.
-std::optional<double> range_noise_evidence(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& B,
-                                           const Pose2& x, const ScanMatcherConfig& config) {
-  struct Residual {
-    double range2;
-    double abs_e;
-  };
-  std::vector<Residual> residuals;
-  residuals.reserve(B.size());
-  const Eigen::Matrix2d R = rotation(x.phi);
-  const Eigen::Vector2d t(x.x, x.y);
-  for (const Eigen::Vector2d& b : B) {
-    const Eigen::Vector2d q = t + R * b;
-    const int j = A.nearest(q, config.last_gate_m);
-    if (j < 0) continue;
-    const std::size_t k = static_cast<std::size_t>(j);
-    residuals.push_back({b.squaredNorm(), std::abs(A.normals()[k].dot(q - A.points()[k]))});
-  }
-  const std::size_t third = residuals.size() / 3;
-  if (third < 3 || static_cast<int>(residuals.size()) < config.min_correspondences) return std::nullopt;
-  std::sort(residuals.begin(), residuals.end(),
-            [](const Residual& a, const Residual& b) { return a.range2 < b.range2; });
-  // σ² from the MAD (1.4826 median |e|), and the mean r², of residuals[first, first + third).
-  const auto spread = [&](std::size_t first) {
-    std::vector<double> abs_e;
-    abs_e.reserve(third);
-    double range2 = 0.0;
-    for (std::size_t i = first; i < first + third; ++i) {
-      abs_e.push_back(residuals[i].abs_e);
-      range2 += residuals[i].range2;
-    }
-    const auto mid = abs_e.begin() + static_cast<std::ptrdiff_t>(third / 2);
-    std::nth_element(abs_e.begin(), mid, abs_e.end());
-    const double sigma = 1.4826 * *mid;
-    return std::pair{sigma * sigma, range2 / static_cast<double>(third)};
-  };
-  const auto [near_sigma2, near_range2] = spread(0);
-  const auto [far_sigma2, far_range2] = spread(residuals.size() - third);
-  // The far third at least twice as far as the near one: its
-  // range-proportional variance at least four times the near third's.
-  if (far_range2 < 4.0 * near_range2) return std::nullopt;
-  return (far_sigma2 - near_sigma2) / (far_range2 - near_range2);
-}
-
 // Stage 2: Gauss–Newton of the maximum a posteriori problem from x0.
 std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& B, const Pose2& x0,
                                  const Pose2& u_hat, const Eigen::Matrix3d& Q_inv, const ScanMatcherConfig& config) {
@@ -464,7 +419,6 @@ std::optional<Refinement> refine(const ReferenceScan& A, const std::vector<Eigen
       iterations_at_gate = 0;
     }
   }
-  out.match.range_noise_slope2 = range_noise_evidence(A, B, x, config);
   const Pose2 r_pose = between(u_hat, x);
   out.match.prior_residual = Eigen::Vector3d(r_pose.x, r_pose.y, wrap_angle(r_pose.phi));
   out.match.prior_distance2 = out.match.prior_residual.dot(Q_inv * out.match.prior_residual);

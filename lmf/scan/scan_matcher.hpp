@@ -259,15 +259,6 @@ struct ScanMatch {
   int correspondences = 0;       // matched points at the last iteration
   int iterations = 0;
   double rms_m = 0.0;            // RMS point-to-line distance of the matched points
-  // This match's own evidence of range_noise_per_m²: the matched points'
-  // residuals at the optimum, the nearest and the farthest third by range (the
-  // middle third keeps the two apart),
-  // (σ_far² − σ_near²) / (mean r²_far − mean r²_near), each σ the third's
-  // MAD-based std (robust to wrong pairings). Signed (noise alone makes it
-  // negative half the time where the range adds nothing); std::nullopt where
-  // the far third is not at least twice as far as the near one (the
-  // range-proportional part then at least quadruples) or too few points matched.
-  std::optional<double> range_noise_slope2;
   double search_score = 0.0;     // the correlative search's best score (mean likelihood, [0, 1])
   Pose2 search_pose;             // ... and its pose
   // The search's best pose lies on the outermost ring of its window
