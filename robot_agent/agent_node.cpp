@@ -235,6 +235,7 @@ void AgentNode::process(const rt::RobotScan& scan) {
   last_scan_utime_ = scan.scan.utime;
   map_has_scans_ = true;
   ++counters_.scans_processed;
+  if (report.scan_skipped) ++counters_.scans_skipped;
   if (report.scan_match_tried) ++counters_.scans_match_tried;
   if (report.scan_matched) ++counters_.scans_matched;
   if (report.scan_match_escalated) ++counters_.scans_match_escalated;
@@ -482,6 +483,7 @@ void AgentNode::on_mission_end(const std::string& channel, const void* data, std
   }
   // Ship the unfinished map so every scan belongs to a fused local map; the
   // next (empty) map begins at the last scan processed.
+  if (local_map_.take_skipped_scan()) --counters_.scans_skipped;  // the map ends at the last scan
   const std::optional<std::int64_t> shipped = ship();
   if (last_processed_ && !acks_.empty()) {
     origin_ = AgentState::Origin{last_processed_->seq, last_processed_->utime, last_processed_->odometry, acks_.back()};

@@ -110,6 +110,7 @@ struct AgentOptions {
 // What the agent has done, for status messages, logs and tests.
 struct AgentCounters {
   std::int64_t scans_processed = 0;
+  std::int64_t scans_skipped = 0;      // of those, taken as no new view by the motion filter (dead-reckoned)
   std::int64_t scans_match_tried = 0;  // scans matched against the previous one (scan_matching) ...
   std::int64_t scans_matched = 0;      // ... and those whose prediction used the match
   std::int64_t scans_match_escalated = 0;  // scans whose search escalated to its wider window ...

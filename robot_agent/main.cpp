@@ -102,6 +102,7 @@ int main(int argc, char** argv) {
             << " local maps shipped, " << c.maps_acknowledged << " acknowledged, " << c.map_resends << " resends, "
             << agent.all_rejects().total() << " messages rejected"
             << (agent.mission_done() ? ", mission done" : agent.mission_ended() ? ", mission end received" : "")
+            << "; " << c.scans_processed - c.scans_skipped << " scans taken (motion filter)"
             << "; scan matches " << c.scans_matched << "/" << c.scans_match_tried << " (" << c.scans_match_escalated
             << " searches escalated, " << c.scans_matched_from_escalation << " matched there); segments seen through "
             << c.segments_seen_through << "; per-scan time p50 " << timing.p50_ms << " ms, p99 " << timing.p99_ms << " ms, max " << timing.max_ms

@@ -54,6 +54,7 @@ RunResult run_local_map(const lmf::sim::RobotRun& robot, const lmf::LocalMapConf
   for (std::size_t k = 0; k < robot.scans.size(); ++k) {
     const lmf::ScanReport r = lm.process_scan(robot.scans[k]);
     if (r.covariance_checked && !r.covariance_health.ok()) ++out.unhealthy_checks;
+    if (r.scan_skipped) continue;  // the motion filter's: the filter is where the last scan taken left it
     // L is the robot's true pose at the first scan.
     const lmf::Pose2 x_LR_true = lmf::between(robot.true_poses.front(), robot.true_poses[k]);
     const double t = static_cast<double>(robot.scans[k].utime - t0) * 1e-6;

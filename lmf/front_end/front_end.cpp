@@ -5,6 +5,7 @@
 #include <Eigen/Cholesky>
 
 #include "lmf/front_end/escalating_registration.hpp"
+#include "lmf/front_end/motion_filter.hpp"
 
 namespace lmf {
 namespace {
@@ -20,14 +21,28 @@ Eigen::Matrix3d at_least_the_window(const Eigen::Matrix3d& Q, const ScanMatcherC
 
 }  // namespace
 
-FrontEnd::FrontEnd(const MotionPriorConfig& config)
-    : matching_(config.scan_matching), motion_prior_(config), local_submap_(config.scan_matching) {}
+FrontEnd::FrontEnd(const FrontEndConfig& config)
+    : matching_(config.motion_prior.scan_matching),
+      motion_filter_(config.motion_filter),
+      motion_prior_(config.motion_prior),
+      local_submap_(config.motion_prior.scan_matching) {}
 
-RegisteredScan FrontEnd::register_scan(const LaserScan& scan) {
+RegisteredScan FrontEnd::register_scan(const LaserScan& scan, bool take) {
   RegisteredScan out;
   ScanPoints points;  // the scan's, where it is registered
   // 1. The motion prior.
   const std::optional<MotionPrior::Prediction> prior = motion_prior_.predict(scan.utime, scan.odometry);
+  // 0. The motion filter: a scan that is no new view is dead-reckoned.
+  if (!take && motion_filter_ && prior && motion_prior_.with_odometry()) {
+    const Pose2 step = skipped_since_taken_ ? between(*skipped_since_taken_, prior->motion.u) : prior->motion.u;
+    if (!is_new_view(prior->motion.u, step, matching_)) {
+      out.motion = prior->motion;
+      out.skipped = true;
+      skipped_since_taken_ = prior->motion.u;
+      return out;
+    }
+  }
+  skipped_since_taken_.reset();
   // 2. Registration against the local submap, the prior as the centre of the
   //    search window and as the refinement's prior, the window escalating
   //    when the motion did more than it holds (Q is singular only for a
@@ -91,6 +106,7 @@ std::optional<MotionIncrement> FrontEnd::odometry_step(int64_t utime, const Pose
 void FrontEnd::resume(int64_t utime, const Pose2& odometry) {
   motion_prior_.restart_from(utime, odometry);
   local_submap_.clear();
+  skipped_since_taken_.reset();
 }
 
 }  // namespace lmf

@@ -2,6 +2,9 @@
 // motion since the previous one with its covariance, which the EKF local map
 // predicts with (LocalMap, step 1). A short pipeline of stages, each in its
 // own file:
+//   0. the motion filter (motion_filter.hpp): with odometry, a scan that has
+//      not moved a keyframe from the last scan taken is not a new view; it is
+//      dead-reckoned, and the stages below see the next scan taken;
 //   1. the motion prior (motion_prior.hpp): odometry corrected by the learned
 //      odometry model, or constant velocity;
 //   2. registration (escalating_registration.hpp): the scan against the local
@@ -33,8 +36,11 @@ namespace lmf {
 
 // What the front end made of one scan.
 struct RegisteredScan {
-  // x_{k-1,k} and its covariance; std::nullopt for the first scan.
+  // x_{k-1,k} and its covariance, k-1 the last scan taken; std::nullopt for the first scan.
   std::optional<MotionIncrement> motion;
+  // Not a new view (stage 0): `motion` is the prior's since the last scan
+  // taken, nothing else was done, and the next scan's motion spans this one.
+  bool skipped = false;
   bool registration_tried = false;
   std::optional<ScanMatch> registration;  // when it succeeded: motion is its x_AB
   bool search_escalated = false;       // the search escalated (escalating_registration.hpp) ...
@@ -42,13 +48,21 @@ struct RegisteredScan {
   double odometry_learning_weight = 0.0;  // the increment's robust weight in the odometry model (0: not learned from)
 };
 
+struct FrontEndConfig {
+  MotionPriorConfig motion_prior;
+  // Stage 0, with odometry (without it nothing is known of the motion before
+  // the scan is registered, so every scan is).
+  bool motion_filter = true;
+};
+
 class FrontEnd {
  public:
   // Throws std::invalid_argument for an invalid config.
-  explicit FrontEnd(const MotionPriorConfig& config);
+  explicit FrontEnd(const FrontEndConfig& config);
 
-  // Stages 1-5 for one scan (its odometry x_OR finite).
-  RegisteredScan register_scan(const LaserScan& scan);
+  // Stages 0-5 for one scan (its odometry x_OR finite); `take`: stages 1-5
+  // whatever the motion filter says (a scan the map must end at).
+  RegisteredScan register_scan(const LaserScan& scan, bool take = false);
   // Stage 1 alone, for a scan known only by its time and odometry (observations
   // extracted elsewhere): the motion from the prior.
   std::optional<MotionIncrement> odometry_step(int64_t utime, const Pose2& odometry);
@@ -68,11 +82,13 @@ class FrontEnd {
 
  private:
   ScanMatcherConfig matching_;
+  bool motion_filter_;
   MotionPrior motion_prior_;
   // The last scans with their poses relative to the newest: relative to the
   // robot, so a new local map keeps it.
   ScanHistory local_submap_;
   RangeNoiseEstimate range_noise_;
+  std::optional<Pose2> skipped_since_taken_;  // the last scan's motion since the last taken, when it was skipped
 };
 
 }  // namespace lmf

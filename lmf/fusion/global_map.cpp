@@ -198,6 +198,10 @@ std::optional<RobotJoin> GlobalMap::how_joined(int robot_id) const {
 
 bool GlobalMap::has_fused(int robot_id, std::int64_t seq) const { return arrivals_.has_fused(robot_id, seq); }
 
+std::optional<Pose2> GlobalMap::fused_frame(int robot_id, std::int64_t seq) const {
+  return arrivals_.fused_frame(robot_id, seq);
+}
+
 bool GlobalMap::is_queued(int robot_id, std::int64_t seq) const { return arrivals_.is_queued(robot_id, seq); }
 
 int GlobalMap::queued_count() const { return arrivals_.queued_count(); }

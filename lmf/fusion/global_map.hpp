@@ -411,6 +411,9 @@ class GlobalMap {
 
   bool is_joined(int robot_id) const;
   bool has_fused(int robot_id, std::int64_t seq) const;
+  // L_r of the robot's local map `seq` as its fusion left it (x_WL after the
+  // update), for its last frame_history_per_robot fused maps.
+  std::optional<Pose2> fused_frame(int robot_id, std::int64_t seq) const;
   bool is_queued(int robot_id, std::int64_t seq) const;
   int queued_count() const;
   std::vector<int> robots() const;  // joined robots, ascending

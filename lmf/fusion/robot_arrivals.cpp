@@ -22,6 +22,14 @@ bool RobotArrivals::has_fused(int robot_id, std::int64_t seq) const {
   return r != nullptr && r->fused.count(seq) != 0;
 }
 
+std::optional<Pose2> RobotArrivals::fused_frame(int robot_id, std::int64_t seq) const {
+  const Robot* r = find(robot_id);
+  if (r == nullptr) return std::nullopt;
+  const auto it = r->history.find(seq);
+  if (it == r->history.end()) return std::nullopt;
+  return it->second.first;
+}
+
 bool RobotArrivals::is_queued(int robot_id, std::int64_t seq) const {
   const Robot* r = find(robot_id);
   return r != nullptr && r->queue.count(seq) != 0;

@@ -50,6 +50,9 @@ class RobotArrivals {
   bool any_joined() const { return any_joined_; }
   bool is_joined(int robot_id) const;
   bool has_fused(int robot_id, std::int64_t seq) const;
+  // x_WL of local map `seq` as its fusion left it, for the robot's last
+  // frame_history fused maps; nullopt for the others.
+  std::optional<Pose2> fused_frame(int robot_id, std::int64_t seq) const;
   bool is_queued(int robot_id, std::int64_t seq) const;
   int queued_count() const;
   std::vector<int> joined() const;  // ascending

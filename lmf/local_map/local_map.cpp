@@ -46,8 +46,10 @@ void require_finite_odometry(int64_t utime, const Pose2& odometry) {
 LocalMap::LocalMap(const LocalMapConfig& config, int robot_id)
     : config_(config),
       robot_id_(robot_id),
-      front_end_((config.validate(), MotionPriorConfig{local_map::odometry_prior(config), config.odometry_learning,
-                                                       config.scan_matching, config.scans_have_odometry})),
+      front_end_((config.validate(),
+                  FrontEndConfig{{local_map::odometry_prior(config), config.odometry_learning, config.scan_matching,
+                                  config.scans_have_odometry},
+                                 config.motion_filter})),
       careful_{config.careful_inverse_tolerance, 0.0},
       pairing_chi2_(config.pairing_alpha),
       joint_chi2_(config.joint_alpha),
@@ -168,10 +170,31 @@ ScanReport LocalMap::update_with(int64_t utime, const std::vector<ObservedSegmen
   return report;
 }
 
-ScanReport LocalMap::process_scan(const LaserScan& scan) {
+ScanReport LocalMap::process_scan(const LaserScan& scan) { return process(scan, false); }
+
+std::optional<ScanReport> LocalMap::take_skipped_scan() {
+  if (!last_scan_skipped_) return std::nullopt;
+  const LaserScan scan = std::move(*last_scan_skipped_);
+  scan_poses_.pop_back();  // its dead-reckoned pose; the update gives it its own
+  return process(scan, true);
+}
+
+ScanReport LocalMap::process(const LaserScan& scan, bool take) {
   require_finite_odometry(scan.utime, scan.odometry);
-  const RegisteredScan registered = front_end_.register_scan(scan);  // step 1
+  const RegisteredScan registered = front_end_.register_scan(scan, take);  // step 1
   ScanReport report;
+  if (registered.skipped) {
+    // Not a new view (the front end's motion filter): the filter is not
+    // touched; the scan's pose is dead-reckoned from the last scan taken.
+    report.utime = scan.utime;
+    report.scan_skipped = true;
+    report.map_segments_before = report.map_segments = static_cast<int>(num_segments());
+    report.x_LR = compose(x_LR(), registered.motion->u);
+    scan_poses_.push_back({scan.utime, report.x_LR});
+    last_scan_skipped_ = scan;
+    return report;
+  }
+  last_scan_skipped_.reset();
   report.scan_match_tried = registered.registration_tried;
   report.scan_match_escalated = registered.search_escalated;
   report.scan_match_from_escalation = registered.match_from_escalation;
@@ -559,6 +582,7 @@ void LocalMap::reset() {
   robot_ = map_.add(EntityKind::kRobot, Pose2());
   groups_ = {};
   scan_poses_.clear();
+  last_scan_skipped_.reset();
   span_m_ = 0.0;
   ++seq_;
   first_utime_ = had_scans ? std::optional<int64_t>(last_utime_) : std::nullopt;

@@ -58,6 +58,11 @@ struct ScanReport {
   int observations_rejected = 0;  // skipped as malformed (non-finite, bad covariance, length <= 0)
   int map_segments_before = 0;
 
+  // The front end's motion filter took the scan as no new view (process_scan
+  // only; LocalMapConfig::motion_filter): the map is as it was, x_LR is the
+  // scan's dead-reckoned pose, and nothing else below is filled.
+  bool scan_skipped = false;
+
   // Step 1 (LocalMapConfig::scan_matching, process_scan only): whether the scan
   // was matched against the recent ones and the prediction used the match.
   bool scan_match_tried = false;
@@ -129,6 +134,11 @@ class LocalMap {
   // and the filter predicts with that motion and updates. Throws
   // std::invalid_argument (state unchanged) for a non-finite odometry pose.
   ScanReport process_scan(const LaserScan& scan);
+  // When the last scan was skipped by the motion filter (ScanReport::scan_skipped),
+  // takes it now, as process_scan would a new view, so the map ends at it (a
+  // map shipped before the robot moved on: the mission's end); nullopt, and
+  // nothing done, otherwise.
+  std::optional<ScanReport> take_skipped_scan();
 
   // Step 1 alone, with the odometry increment u = between(odom_prev, odom_now)
   // (m, rad) and the current odometry model (odometry_model(): the learned one,
@@ -200,6 +210,8 @@ class LocalMap {
     spmap::ImplicitMeasurement measurement;
   };
 
+  // process_scan; `take`: whatever the motion filter says.
+  ScanReport process(const LaserScan& scan, bool take);
   // Steps 1-10 with the front end's motion (none for the first scan).
   ScanReport update_with(int64_t utime, const std::vector<ObservedSegment>& observations,
                          const std::optional<MotionIncrement>& motion, ScanReport report);
@@ -235,6 +247,7 @@ class LocalMap {
   double span_m_ = 0.0;
   std::size_t scans_ = 0;  // scans folded in since construction
   std::vector<ScanPose> scan_poses_;
+  std::optional<LaserScan> last_scan_skipped_;  // the last scan, when the motion filter skipped it
   // Groups of segments whose relative angles are perfectly known (joined by
   // applied constraints or fusions): one member of a group stands for all in
   // step 9, because a constraint to another member would repeat the same row.

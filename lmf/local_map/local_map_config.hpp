@@ -120,6 +120,12 @@ struct LocalMapConfig {
   // the motion, and there is no odometry model to learn. Needs scan_matching.
   bool scans_have_odometry = true;
 
+  // The motion filter (beyond the paper; on by default; front_end/motion_filter.hpp):
+  // LocalMap::process_scan takes a scan with odometry only once the robot moved
+  // a keyframe (scan_matching.keyframe_distance_m or keyframe_angle_rad) from
+  // the last scan taken; the scans between get dead-reckoned poses.
+  bool motion_filter = true;
+
   // Free-space evidence (beyond the paper; on by default): after each scan,
   // LocalMap::process_scan removes the map segments that most beams crossing
   // them pass through (see_through.hpp): other robots, people, false extractions.

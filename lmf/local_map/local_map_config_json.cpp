@@ -31,6 +31,7 @@ void read_local_map_config(io::JsonReader& reader, LocalMapConfig& config) {
   reader.read("covariance_tolerance", config.covariance_tolerance, io::non_negative());
   reader.read("covariance_check_interval", config.covariance_check_interval);
   reader.read("scans_have_odometry", config.scans_have_odometry);
+  reader.read("motion_filter", config.motion_filter);
   if (io::JsonReader* extraction = reader.optional_section("extraction")) {
     read_extraction_config(*extraction, config.extraction);
   }

@@ -268,6 +268,7 @@ void write_mission_outputs(const std::filesystem::path& out, const OfflineMissio
                         {"range_noise_per_m", r.range_noise_per_m},
                         {"measured_over_matches", r.range_noise_matches}}},
                       {"local_map_consistency", consistency_json(r.local_map_consistency)},
+                      {"scans_skipped", r.scans_skipped},
                       {"scan_matches", r.scan_matches},
                       {"match_fallbacks", r.match_fallbacks},
                       {"match_escalations", r.match_escalations},
@@ -411,7 +412,8 @@ std::string summarize(const OfflineMission& mission, const MissionResult& result
   }
   for (const RobotResult& r : result.robots) {
     if (r.scan_matches + r.match_fallbacks == 0) continue;
-    s << r.name << " scan matches: " << r.scan_matches << ", fallbacks to odometry: " << r.match_fallbacks
+    s << r.name << " scans taken: " << r.scans - r.scans_skipped << " of " << r.scans << " (motion filter)"
+      << "; scan matches: " << r.scan_matches << ", fallbacks to odometry: " << r.match_fallbacks
       << ", searches escalated: " << r.match_escalations << " (" << r.matches_from_escalation << " matched there)";
     if (!r.match_nees.empty()) {
       std::snprintf(line, sizeof line, "; match NEES mean %.1f (3 if consistent) over %zu matches with a reference",

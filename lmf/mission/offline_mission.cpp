@@ -71,7 +71,11 @@ MissionResult OfflineMission::run() {
   ran_ = true;
 
   // The first robot defines W; the others join through sightings.
-  record(global_map_.join_robot(inputs_.robots.front().robot_id, Pose2()));
+  // W is L_r of its first local map, which begins at its first scan (the
+  // others may join and fuse before that map ships).
+  const RobotLog& first = inputs_.robots.front();
+  if (!first.scans.empty()) world_in_reference_ = reference_pose(first.robot_id, first.scans.front().utime);
+  record(global_map_.join_robot(first.robot_id, Pose2()));
 
   std::size_t next_sighting = 0;
   while (true) {
@@ -96,6 +100,7 @@ MissionResult OfflineMission::run() {
   // Ship what is left so every scan belongs to a fused local map.
   for (std::size_t i = 0; i < agents_.size(); ++i) {
     if (agents_[i].local_map.snapshot().scan_poses.empty()) continue;
+    if (agents_[i].local_map.take_skipped_scan()) --result_.robots[i].scans_skipped;  // the map ends at its last scan
     ship(agents_[i], result_.robots[i]);
   }
 
@@ -132,6 +137,12 @@ void OfflineMission::process_scan(Agent& agent, RobotResult& result) {
   const auto start = std::chrono::steady_clock::now();
   const ScanReport report = agent.local_map.process_scan(scan);
   result.scan_times_ms.push_back(elapsed_ms(start));
+  ++result.scans;
+  if (report.scan_skipped) {
+    // Not a new view: the matches' and local maps' checks see the scans taken.
+    ++result.scans_skipped;
+    return;
+  }
   if (report.scan_match_tried) ++(report.scan_matched ? result.scan_matches : result.match_fallbacks);
   result.match_escalations += report.scan_match_escalated ? 1 : 0;
   result.matches_from_escalation += report.scan_match_from_escalation ? 1 : 0;
@@ -139,7 +150,6 @@ void OfflineMission::process_scan(Agent& agent, RobotResult& result) {
                                                           report.scan_match_increment, report.scan_match_covariance})
                                                     : std::nullopt);
   agent.reference_poses.push_back(reference_pose(result.robot_id, scan.utime));
-  ++result.scans;
   result.segments_seen_through += static_cast<std::size_t>(report.segments_seen_through);
   if (!report.covariance_health.ok() && result.covariance_always_ok) {
     result.covariance_always_ok = false;
@@ -159,9 +169,6 @@ void OfflineMission::ship(Agent& agent, RobotResult& result) {
   check_consistency(snapshot, result);
   trajectories_.add(snapshot);
   frame_utimes_[{snapshot.robot_id, snapshot.seq}] = snapshot.first_utime;
-  if (snapshot.robot_id == inputs_.robots.front().robot_id && snapshot.seq == 0) {
-    world_in_reference_ = reference_pose(snapshot.robot_id, snapshot.first_utime);  // its L_r is W (run())
-  }
   record(global_map_.fuse(snapshot));  // lockstep: fused before the next scan
 }
 

@@ -83,6 +83,7 @@ struct RobotResult {
   bool covariance_always_ok = true;     // every scan's covariance check passed
   std::string first_covariance_problem;
   std::vector<LocalMapConsistency> local_map_consistency;  // shipped maps with a reference and P_RR > 0
+  std::size_t scans_skipped = 0;        // scans the motion filter took as no new view (dead-reckoned)
   std::size_t scan_matches = 0;         // scans whose motion came from the scan match
   std::size_t match_fallbacks = 0;      // scans whose match was tried and failed (odometry alone)
   std::size_t match_escalations = 0;    // scans whose search escalated to its wider window ...

@@ -27,7 +27,7 @@ LaserScan scan_at(const Pose2& truth, const Pose2& odometry, int64_t utime) {
 }
 
 TEST(FrontEnd, TheFirstScanHasNoMotionAndNothingToRegisterAgainst) {
-  FrontEnd front_end(config());
+  FrontEnd front_end({config()});
   const RegisteredScan first = front_end.register_scan(scan_at(Pose2(), Pose2(), 0));
   EXPECT_FALSE(first.motion.has_value());
   EXPECT_FALSE(first.registration_tried);
@@ -35,7 +35,7 @@ TEST(FrontEnd, TheFirstScanHasNoMotionAndNothingToRegisterAgainst) {
 }
 
 TEST(FrontEnd, TheRegisteredMotionCorrectsTheOdometryAndTeachesTheModel) {
-  FrontEnd front_end(config());
+  FrontEnd front_end({config()});
   front_end.register_scan(scan_at(Pose2(), Pose2(), 0));
   // The odometry says 0.55 m and 0.1 rad; the robot went 0.5 m and 0.08 rad.
   const Pose2 truth(0.5, 0.0, 0.08);
@@ -55,7 +55,7 @@ TEST(FrontEnd, TheRegisteredMotionCorrectsTheOdometryAndTeachesTheModel) {
 }
 
 TEST(FrontEnd, AFailedRegistrationHandsOnThePriorAndRestartsTheSubmap) {
-  FrontEnd front_end(config());
+  FrontEnd front_end({config()});
   front_end.register_scan(scan_at(Pose2(), Pose2(), 0));
   front_end.register_scan(scan_at(Pose2(0.3, 0.0, 0.0), Pose2(0.3, 0.0, 0.0), 100000));
   ASSERT_EQ(front_end.local_submap().size(), 2U);
@@ -83,7 +83,7 @@ TEST(FrontEnd, AFailedRegistrationHandsOnThePriorAndRestartsTheSubmap) {
 TEST(FrontEnd, WithoutOdometryTheMotionIsPredictedAtConstantVelocity) {
   MotionPriorConfig c = config();
   c.scans_have_odometry = false;
-  FrontEnd front_end(c);
+  FrontEnd front_end({c});
   // The odometry field is ignored: it stays zero while the robot moves 0.2 m per 0.1 s.
   front_end.register_scan(scan_at(Pose2(), Pose2(), 0));
   const RegisteredScan second = front_end.register_scan(scan_at(Pose2(0.2, 0.0, 0.0), Pose2(), 100000));
@@ -97,7 +97,7 @@ TEST(FrontEnd, WithoutOdometryTheMotionIsPredictedAtConstantVelocity) {
 }
 
 TEST(FrontEnd, AResumedChainPredictsFromTheGivenReadingWithoutRegistering) {
-  FrontEnd front_end(config());
+  FrontEnd front_end({config()});
   front_end.register_scan(scan_at(Pose2(), Pose2(), 0));
   front_end.resume(500000, Pose2(1.0, 0.0, 0.0));
   EXPECT_TRUE(front_end.local_submap().empty());
@@ -107,8 +107,49 @@ TEST(FrontEnd, AResumedChainPredictsFromTheGivenReadingWithoutRegistering) {
   EXPECT_NEAR(step.motion->u.x, 0.4, 1e-9);
 }
 
+// Stage 0: a scan short of a keyframe (0.2 m, 0.1 rad) from the last scan
+// taken by more than half its step is not a new view; the next one spans it.
+// Without odometry nothing is known of the motion before the registration, so
+// every scan is taken.
+TEST(FrontEnd, AScanThatIsNoNewViewIsSkippedAndTheNextOneSpansIt) {
+  FrontEnd front_end({config()});
+  front_end.register_scan(scan_at(Pose2(), Pose2(), 0));
+  const RegisteredScan near = front_end.register_scan(scan_at(Pose2(0.1, 0.0, 0.05), Pose2(0.1, 0.0, 0.05), 100000));
+  EXPECT_TRUE(near.skipped);
+  EXPECT_FALSE(near.registration_tried);
+  ASSERT_TRUE(near.motion.has_value());
+  EXPECT_NEAR(near.motion->u.x, front_end.odometry_model().corrected(Pose2(0.1, 0.0, 0.05)).x, 1e-12);
+  EXPECT_EQ(front_end.local_submap().size(), 1U);
+  EXPECT_EQ(front_end.motion_prior().odometry_learning_stats().increments, 0U);
+  const RegisteredScan far = front_end.register_scan(scan_at(Pose2(0.25, 0.0, 0.05), Pose2(0.25, 0.0, 0.05), 200000));
+  EXPECT_FALSE(far.skipped);
+  ASSERT_TRUE(far.registration.has_value());
+  EXPECT_NEAR(far.motion->u.x, 0.25, 0.02);  // from the first scan
+  EXPECT_EQ(front_end.local_submap().size(), 2U);
+  // A turn of a keyframe's angle is a new view too.
+  const RegisteredScan turned = front_end.register_scan(scan_at(Pose2(0.25, 0.0, 0.16), Pose2(0.25, 0.0, 0.16), 300000));
+  EXPECT_FALSE(turned.skipped);
+  // Steps of 0.15 m: 0.15 is nearer the keyframe than 0.3 would be, so each is taken.
+  EXPECT_FALSE(front_end.register_scan(scan_at(Pose2(0.4, 0.0, 0.16), Pose2(0.4, 0.0, 0.16), 400000)).skipped);
+  EXPECT_FALSE(front_end.register_scan(scan_at(Pose2(0.55, 0.0, 0.16), Pose2(0.55, 0.0, 0.16), 500000)).skipped);
+
+  FrontEndConfig unfiltered{config()};
+  unfiltered.motion_filter = false;
+  FrontEnd every_scan(unfiltered);
+  every_scan.register_scan(scan_at(Pose2(), Pose2(), 0));
+  EXPECT_FALSE(every_scan.register_scan(scan_at(Pose2(0.1, 0.0, 0.0), Pose2(0.1, 0.0, 0.0), 100000)).skipped);
+
+  MotionPriorConfig without_odometry = config();
+  without_odometry.scans_have_odometry = false;
+  FrontEnd laser_alone({without_odometry});
+  laser_alone.register_scan(scan_at(Pose2(), Pose2(), 0));
+  const RegisteredScan second = laser_alone.register_scan(scan_at(Pose2(0.05, 0.0, 0.0), Pose2(), 100000));
+  EXPECT_FALSE(second.skipped);
+  EXPECT_TRUE(second.registration_tried);
+}
+
 TEST(FrontEnd, TheOdometryStepIsThePriorAlone) {
-  FrontEnd front_end(config());
+  FrontEnd front_end({config()});
   EXPECT_FALSE(front_end.odometry_step(0, Pose2()).has_value());
   const std::optional<MotionIncrement> m = front_end.odometry_step(100000, Pose2(0.5, 0.1, 0.2));
   ASSERT_TRUE(m.has_value());

@@ -81,7 +81,7 @@ TEST(RangeNoiseEstimate, TheFrontEndMeasuresARangeProportionalLaserAndNotAConsta
     MotionPriorConfig config;
     config.scan_matching = matching;
     config.odometry_prior = OdometryErrorModel::proportional(0.08, 0.08, 0.01, 0.001, 0.0005);
-    FrontEnd front_end(config);
+    FrontEnd front_end({config});
     std::mt19937 rng(3);
     for (int k = 0; k < 60; ++k) {
       const Pose2 truth(0.3 * k, 0.2 * std::sin(0.2 * k), 0.03 * std::sin(0.3 * k));

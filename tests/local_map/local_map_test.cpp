@@ -711,6 +711,49 @@ TEST(LocalMapScanMatching, TheScanHistorySurvivesReset) {
   }
 }
 
+// The motion filter (LocalMapConfig::motion_filter): a robot creeping 5 cm per
+// scan is taken every fourth scan (0.2 m, the keyframe, is nearest at the fourth); the scans between
+// leave the filter as it was and are dead-reckoned from the last scan taken,
+// and the local map's trajectory holds every scan.
+TEST(LocalMapMotionFilter, ScansThatAreNoNewViewAreDeadReckonedAndLeaveTheFilterAsItWas) {
+  testing::SyntheticWorld room;
+  room.walls = {{{-2.0, -4.0}, {12.0, -4.0}}, {{12.0, -4.0}, {12.0, 5.0}}, {{12.0, 5.0}, {-2.0, 5.0}},
+                {{-2.0, 5.0}, {-2.0, -4.0}}, {{5.0, 2.0}, {5.0, 5.0}}};
+  const auto run = [&](bool motion_filter) {
+    LocalMapConfig config;
+    config.motion_filter = motion_filter;
+    LocalMap lm(config);
+    int taken = 0;
+    for (int k = 0; k < 17; ++k) {
+      const Pose2 x_WR(0.05 * k, 0.0, 0.0);
+      LaserScan scan = testing::make_scan(room, x_WR, 361);
+      scan.utime = k * kScanPeriodUs;
+      scan.odometry = x_WR;
+      const Eigen::MatrixXd P_before = lm.snapshot().covariance;
+      const Pose2 x_LR_before = lm.x_LR();
+      const ScanReport r = lm.process_scan(scan);
+      EXPECT_EQ(r.scan_skipped, motion_filter && k % 4 != 0) << k;
+      if (r.scan_skipped) {
+        EXPECT_FALSE(r.scan_match_tried) << k;
+        EXPECT_TRUE(lm.snapshot().covariance == P_before) << k;
+        EXPECT_TRUE(is_near(lm.x_LR(), x_LR_before, 0.0, 0.0)) << k;
+        // The corrected odometry since the last scan taken.
+        EXPECT_NEAR(r.x_LR.x, 0.05 * k, 0.01) << k;
+      } else {
+        ++taken;
+        EXPECT_EQ(r.scan_matched, k > 0) << k;
+        EXPECT_TRUE(is_near(r.x_LR, lm.x_LR(), 0.0, 0.0)) << k;
+      }
+    }
+    const LocalMapSnapshot snapshot = lm.snapshot();
+    EXPECT_EQ(snapshot.scan_poses.size(), 17U);
+    EXPECT_NEAR(snapshot.scan_poses.back().x_LR.x, 0.8, 0.01);
+    return taken;
+  };
+  EXPECT_EQ(run(true), 5);
+  EXPECT_EQ(run(false), 17);
+}
+
 // Free-space evidence (LocalMapConfig::see_through): a box face seen by the
 // first scans (another robot standing there) and gone from the later ones is
 // removed once the beams pass through where it was; the room's walls stay.

