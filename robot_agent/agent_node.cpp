@@ -262,7 +262,7 @@ void AgentNode::process(const rt::RobotScan& scan) {
   ack.robot_id = options_.robot_id;
   ack.seq = scan.seq;
   ack.local_map_seq = local_map_.seq();
-  ack.x_LR = local_map_.x_LR();
+  ack.x_LR = local_map_.x_LR();  // at the last scan taken (the motion filter)
   ack.covariance = local_map_.robot_covariance();
   acks_.push_back(ack);
   if (acks_.size() > options_.ack_history) acks_.pop_front();
@@ -462,7 +462,7 @@ std::optional<Pose2> AgentNode::global_pose() const {
     if (it == shipped_final_x_LR_.end()) return std::nullopt;
     x_WL = compose(x_WL, it->second);
   }
-  return compose(x_WL, local_map_.x_LR());
+  return compose(x_WL, local_map_.x_LR_at_last_scan());
 }
 
 // ---- mission end ----------------------------------------------------------------------------

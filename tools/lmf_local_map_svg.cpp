@@ -87,6 +87,7 @@ int run(const Options& o) {
     const lmf::ScanReport r = lm.process_scan(log.scans[k]);
     if (!r.covariance_health.ok()) ++unhealthy;
   }
+  lm.take_skipped_scan();  // the map ends at the last scan, drawn there
 
   lmf::io::SvgDocument svg(o.pixels_per_metre);
   std::ostringstream title;

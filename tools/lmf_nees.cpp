@@ -54,16 +54,16 @@ RunResult run_local_map(const lmf::sim::RobotRun& robot, const lmf::LocalMapConf
   for (std::size_t k = 0; k < robot.scans.size(); ++k) {
     const lmf::ScanReport r = lm.process_scan(robot.scans[k]);
     if (r.covariance_checked && !r.covariance_health.ok()) ++out.unhealthy_checks;
-    if (r.scan_skipped) continue;  // the motion filter's: the filter is where the last scan taken left it
     // L is the robot's true pose at the first scan.
     const lmf::Pose2 x_LR_true = lmf::between(robot.true_poses.front(), robot.true_poses[k]);
     const double t = static_cast<double>(robot.scans[k].utime - t0) * 1e-6;
     // Bucket b holds the times in (b·bucket_s, (b+1)·bucket_s]; t = 0 joins bucket 0.
     const auto bucket = t <= 0.0 ? std::size_t{0} : static_cast<std::size_t>(std::ceil(t / bucket_s) - 1.0);
     if (out.nees.size() <= bucket) out.nees.resize(bucket + 1);
-    out.nees[bucket] = lmf::pose_nees(lm.x_LR(), lm.robot_covariance(), x_LR_true);
-    out.final_error_m = std::hypot(lm.x_LR().x - x_LR_true.x, lm.x_LR().y - x_LR_true.y);
-    out.final_error_rad = std::abs(lmf::wrap_angle(lm.x_LR().phi - x_LR_true.phi));
+    const lmf::Pose2 x_LR = lm.x_LR_at_last_scan();
+    out.nees[bucket] = lmf::pose_nees(x_LR, lm.robot_covariance_at_last_scan(), x_LR_true);
+    out.final_error_m = std::hypot(x_LR.x - x_LR_true.x, x_LR.y - x_LR_true.y);
+    out.final_error_rad = std::abs(lmf::wrap_angle(x_LR.phi - x_LR_true.phi));
   }
   out.segments = lm.num_segments();
   return out;

@@ -35,7 +35,7 @@ RegisteredScan FrontEnd::register_scan(const LaserScan& scan, bool take) {
   // 0. The motion filter: a scan that is no new view is dead-reckoned.
   if (!take && motion_filter_ && prior && motion_prior_.with_odometry()) {
     const Pose2 step = skipped_since_taken_ ? between(*skipped_since_taken_, prior->motion.u) : prior->motion.u;
-    if (!is_new_view(prior->motion.u, step, matching_)) {
+    if (!is_taken(prior->motion.u, step, matching_)) {
       out.motion = prior->motion;
       out.skipped = true;
       skipped_since_taken_ = prior->motion.u;
@@ -96,6 +96,7 @@ RegisteredScan FrontEnd::register_scan(const LaserScan& scan, bool take) {
 }
 
 std::optional<MotionIncrement> FrontEnd::odometry_step(int64_t utime, const Pose2& odometry) {
+  skipped_since_taken_.reset();  // every scan is taken here
   const std::optional<MotionPrior::Prediction> prior = motion_prior_.predict(utime, odometry);
   std::optional<MotionIncrement> motion;
   if (prior) motion = prior->motion;

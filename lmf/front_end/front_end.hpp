@@ -3,8 +3,10 @@
 // predicts with (LocalMap, step 1). A short pipeline of stages, each in its
 // own file:
 //   0. the motion filter (motion_filter.hpp): with odometry, a scan that has
-//      not moved a keyframe from the last scan taken is not a new view; it is
-//      dead-reckoned, and the stages below see the next scan taken;
+//      not moved a keyframe from the last scan taken (to the nearest scan)
+//      is not a new view: it gets the prior's
+//      motion since the last scan taken and goes no further, and the stages
+//      below see the next scan taken;
 //   1. the motion prior (motion_prior.hpp): odometry corrected by the learned
 //      odometry model, or constant velocity;
 //   2. registration (escalating_registration.hpp): the scan against the local

@@ -14,7 +14,9 @@
 // than this one falls short of it (d + step / 2 >= keyframe, in distance or in
 // angle). So a laser whose step is near the keyframe has every scan taken,
 // not every other one. The scans between are dead-reckoned from the last one
-// taken; the next one taken spans them.
+// taken; the next one taken spans them. Odometry that stalls while the robot
+// moves (a robot pushed) has every scan skipped until it moves again
+// (docs/design.md §10, "The motion filter").
 #pragma once
 
 #include <cmath>
@@ -24,9 +26,9 @@
 
 namespace lmf {
 
-// Whether this scan is a new view: `motion_since_taken` is x_{t,k}, from the
-// last scan taken to this one, and `step` x_{k-1,k}, from the previous scan.
-inline bool is_new_view(const Pose2& motion_since_taken, const Pose2& step, const ScanMatcherConfig& config) {
+// Whether this scan is taken: `motion_since_taken` is x_{t,k}, from the last
+// scan taken to this one, and `step` x_{k-1,k}, from the previous scan.
+inline bool is_taken(const Pose2& motion_since_taken, const Pose2& step, const ScanMatcherConfig& config) {
   const double distance = std::hypot(motion_since_taken.x, motion_since_taken.y) + 0.5 * std::hypot(step.x, step.y);
   const double angle = std::abs(motion_since_taken.phi) + 0.5 * std::abs(step.phi);
   return distance >= config.keyframe_distance_m || angle >= config.keyframe_angle_rad;

@@ -62,6 +62,19 @@ Pose2 LocalMap::x_LR() const { return map_.entity(robot_).location; }
 
 Eigen::Matrix3d LocalMap::robot_covariance() const { return map_.block(robot_, robot_); }
 
+Pose2 LocalMap::x_LR_at_last_scan() const {
+  return motion_to_skipped_ ? compose(x_LR(), motion_to_skipped_->u) : x_LR();
+}
+
+Eigen::Matrix3d LocalMap::robot_covariance_at_last_scan() const {
+  if (!motion_to_skipped_) return robot_covariance();
+  const local_map::PredictionJacobians pj = local_map::prediction_jacobians(x_LR(), motion_to_skipped_->u);
+  const Eigen::Matrix3d& Q = motion_to_skipped_->Q;
+  const Eigen::Matrix3d P = pj.J_R * robot_covariance() * pj.J_R.transpose() +
+                            pj.J_u * (0.5 * (Q + Q.transpose())) * pj.J_u.transpose();
+  return 0.5 * (P + P.transpose());
+}
+
 std::size_t LocalMap::num_segments() const { return map_.entities().size() - 1; }
 
 std::vector<EntityId> LocalMap::segment_ids() const {
@@ -119,6 +132,8 @@ ScanReport LocalMap::update_with(int64_t utime, const std::vector<ObservedSegmen
   report.utime = utime;
   report.observations = static_cast<int>(observations.size());
   report.map_segments_before = static_cast<int>(num_segments());
+  last_scan_skipped_.reset();  // this scan reaches the filter: the map is at it
+  motion_to_skipped_.reset();
 
   std::vector<ObservedSegment> usable_observations;
   usable_observations.reserve(observations.size());
@@ -175,6 +190,8 @@ ScanReport LocalMap::process_scan(const LaserScan& scan) { return process(scan, 
 std::optional<ScanReport> LocalMap::take_skipped_scan() {
   if (!last_scan_skipped_) return std::nullopt;
   const LaserScan scan = std::move(*last_scan_skipped_);
+  last_scan_skipped_.reset();
+  motion_to_skipped_.reset();
   scan_poses_.pop_back();  // its dead-reckoned pose; the update gives it its own
   return process(scan, true);
 }
@@ -189,12 +206,12 @@ ScanReport LocalMap::process(const LaserScan& scan, bool take) {
     report.utime = scan.utime;
     report.scan_skipped = true;
     report.map_segments_before = report.map_segments = static_cast<int>(num_segments());
-    report.x_LR = compose(x_LR(), registered.motion->u);
+    motion_to_skipped_ = registered.motion;
+    report.x_LR = x_LR_at_last_scan();
     scan_poses_.push_back({scan.utime, report.x_LR});
     last_scan_skipped_ = scan;
     return report;
   }
-  last_scan_skipped_.reset();
   report.scan_match_tried = registered.registration_tried;
   report.scan_match_escalated = registered.search_escalated;
   report.scan_match_from_escalation = registered.match_from_escalation;
@@ -583,6 +600,7 @@ void LocalMap::reset() {
   groups_ = {};
   scan_poses_.clear();
   last_scan_skipped_.reset();
+  motion_to_skipped_.reset();
   span_m_ = 0.0;
   ++seq_;
   first_utime_ = had_scans ? std::optional<int64_t>(last_utime_) : std::nullopt;

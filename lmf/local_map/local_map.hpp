@@ -188,8 +188,17 @@ class LocalMap {
   int64_t seq() const { return seq_; }
   const spmap::StochasticMap& map() const { return map_; }
   spmap::EntityId robot() const { return robot_; }
+  // The robot in the filter: at the last scan taken (process_scan's motion
+  // filter leaves the filter there).
   Pose2 x_LR() const;
   Eigen::Matrix3d robot_covariance() const;
+  // The robot at the last scan given: x_LR() after a scan taken; after a
+  // skipped one, x_LR ⊕ u with u the motion since the last scan taken, and
+  // the covariance the prediction with it would give (J_R P_RR J_Rᵀ + J_u Q
+  // J_uᵀ). The agent's global pose reports it; acks and sightings report the
+  // robot in the filter (docs/design.md §10, "The motion filter").
+  Pose2 x_LR_at_last_scan() const;
+  Eigen::Matrix3d robot_covariance_at_last_scan() const;
   std::size_t num_segments() const;
   std::vector<spmap::EntityId> segment_ids() const;  // state order
 
@@ -247,7 +256,8 @@ class LocalMap {
   double span_m_ = 0.0;
   std::size_t scans_ = 0;  // scans folded in since construction
   std::vector<ScanPose> scan_poses_;
-  std::optional<LaserScan> last_scan_skipped_;  // the last scan, when the motion filter skipped it
+  std::optional<LaserScan> last_scan_skipped_;  // the last scan, when the motion filter skipped it ...
+  std::optional<MotionIncrement> motion_to_skipped_;  // ... and the motion to it from the last scan taken
   // Groups of segments whose relative angles are perfectly known (joined by
   // applied constraints or fusions): one member of a group stands for all in
   // step 9, because a constraint to another member would repeat the same row.

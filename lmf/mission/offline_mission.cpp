@@ -241,6 +241,9 @@ void OfflineMission::apply_sighting(const SightingInput& sighting) {
   s.observer_id = sighting.observer;
   s.observed_id = sighting.observed;
   s.observer_seq = observer->local_map.seq();
+  // The robot in the filter: after a scan the motion filter skipped, at the
+  // last scan taken, up to a keyframe behind (docs/design.md §10, "The motion
+  // filter"), as the agent's acks say.
   s.x_LA = observer->local_map.x_LR();
   s.cov_LA = observer->local_map.robot_covariance();
   s.x_AB = sighting.x_AB;

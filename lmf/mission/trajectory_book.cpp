@@ -35,7 +35,8 @@ Pose2 frame_to_next(const fusion::GlobalMap& map, int robot_id, int64_t seq, con
 // The scan poses of a local map in its frame, bent so that the last one
 // reaches `end` (the next frame, seen from this one) instead of x_LR: the
 // correction C = end ⊖ x_LR (C ⊕ x_LR = end) is spread along the path, a
-// scan at the fraction s of it taking s C (x, y and φ scaled).
+// scan at the fraction s of it taking s C (x, y and φ scaled; by scan count
+// for a map that did not move).
 std::vector<Pose2> bent_to(const std::vector<ScanPose>& poses, const Pose2& x_LR, const Pose2& end) {
   const Pose2 C = compose(end, inverse(x_LR));
   std::vector<double> along(poses.size(), 0.0);
@@ -46,7 +47,9 @@ std::vector<Pose2> bent_to(const std::vector<ScanPose>& poses, const Pose2& x_LR
   std::vector<Pose2> out;
   out.reserve(poses.size());
   for (std::size_t i = 0; i < poses.size(); ++i) {
-    const double s = length > 0.0 ? along[i] / length : 1.0;
+    const double s = length > 0.0        ? along[i] / length
+                     : poses.size() > 1 ? static_cast<double>(i) / static_cast<double>(poses.size() - 1)
+                                        : 1.0;
     out.push_back(compose(Pose2(s * C.x, s * C.y, s * C.phi), poses[i].x_LR));
   }
   return out;

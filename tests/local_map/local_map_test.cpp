@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -712,19 +713,21 @@ TEST(LocalMapScanMatching, TheScanHistorySurvivesReset) {
 }
 
 // The motion filter (LocalMapConfig::motion_filter): a robot creeping 5 cm per
-// scan is taken every fourth scan (0.2 m, the keyframe, is nearest at the fourth); the scans between
-// leave the filter as it was and are dead-reckoned from the last scan taken,
-// and the local map's trajectory holds every scan.
+// scan is taken every fourth scan (0.2 m, the keyframe, is nearest at the
+// fourth); the scans between leave the filter as it was and are dead-reckoned
+// from the last scan taken, and the local map's trajectory holds every scan.
+// A map that must end at a skipped scan takes it (take_skipped_scan).
 TEST(LocalMapMotionFilter, ScansThatAreNoNewViewAreDeadReckonedAndLeaveTheFilterAsItWas) {
   testing::SyntheticWorld room;
   room.walls = {{{-2.0, -4.0}, {12.0, -4.0}}, {{12.0, -4.0}, {12.0, 5.0}}, {{12.0, 5.0}, {-2.0, 5.0}},
                 {{-2.0, 5.0}, {-2.0, -4.0}}, {{5.0, 2.0}, {5.0, 5.0}}};
+  constexpr int kScans = 18;  // the last one (17) skipped
   const auto run = [&](bool motion_filter) {
     LocalMapConfig config;
     config.motion_filter = motion_filter;
     LocalMap lm(config);
     int taken = 0;
-    for (int k = 0; k < 17; ++k) {
+    for (int k = 0; k < kScans; ++k) {
       const Pose2 x_WR(0.05 * k, 0.0, 0.0);
       LaserScan scan = testing::make_scan(room, x_WR, 361);
       scan.utime = k * kScanPeriodUs;
@@ -737,21 +740,35 @@ TEST(LocalMapMotionFilter, ScansThatAreNoNewViewAreDeadReckonedAndLeaveTheFilter
         EXPECT_FALSE(r.scan_match_tried) << k;
         EXPECT_TRUE(lm.snapshot().covariance == P_before) << k;
         EXPECT_TRUE(is_near(lm.x_LR(), x_LR_before, 0.0, 0.0)) << k;
-        // The corrected odometry since the last scan taken.
+        // The corrected odometry since the last scan taken, with its noise.
         EXPECT_NEAR(r.x_LR.x, 0.05 * k, 0.01) << k;
+        EXPECT_TRUE(is_near(lm.x_LR_at_last_scan(), r.x_LR, 0.0, 0.0)) << k;
+        EXPECT_GT(lm.robot_covariance_at_last_scan().trace(), lm.robot_covariance().trace()) << k;
       } else {
         ++taken;
         EXPECT_EQ(r.scan_matched, k > 0) << k;
         EXPECT_TRUE(is_near(r.x_LR, lm.x_LR(), 0.0, 0.0)) << k;
+        EXPECT_TRUE(is_near(lm.x_LR_at_last_scan(), lm.x_LR(), 0.0, 0.0)) << k;
+        EXPECT_TRUE(lm.robot_covariance_at_last_scan() == lm.robot_covariance()) << k;
       }
     }
+    // The map ends at the last scan: taken now if it was skipped.
+    const std::optional<ScanReport> last = lm.take_skipped_scan();
+    EXPECT_EQ(last.has_value(), motion_filter);
+    if (last) {
+      EXPECT_TRUE(last->scan_matched);
+      ++taken;
+    }
+    EXPECT_FALSE(lm.take_skipped_scan().has_value());
     const LocalMapSnapshot snapshot = lm.snapshot();
-    EXPECT_EQ(snapshot.scan_poses.size(), 17U);
-    EXPECT_NEAR(snapshot.scan_poses.back().x_LR.x, 0.8, 0.01);
+    EXPECT_EQ(snapshot.scan_poses.size(), static_cast<std::size_t>(kScans));
+    EXPECT_EQ(snapshot.last_utime, (kScans - 1) * kScanPeriodUs);
+    EXPECT_TRUE(is_near(snapshot.scan_poses.back().x_LR, snapshot.x_LR, 0.0, 0.0));
+    EXPECT_NEAR(snapshot.x_LR.x, 0.05 * (kScans - 1), 0.01);
     return taken;
   };
-  EXPECT_EQ(run(true), 5);
-  EXPECT_EQ(run(false), 17);
+  EXPECT_EQ(run(true), 6);  // 0, 4, 8, 12, 16, and 17 at the end
+  EXPECT_EQ(run(false), kScans);
 }
 
 // Free-space evidence (LocalMapConfig::see_through): a box face seen by the
