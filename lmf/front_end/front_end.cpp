@@ -30,7 +30,7 @@ FrontEnd::FrontEnd(const FrontEndConfig& config)
 RegisteredScan FrontEnd::register_scan(const LaserScan& scan, bool take) {
   RegisteredScan out;
   ScanPoints points;  // the scan's, where it is registered
-  // 1. The motion prior.
+  // 1. The motion prior's prediction, which stage 0 needs first.
   const std::optional<MotionPrior::Prediction> prior = motion_prior_.predict(scan.utime, scan.odometry);
   // 0. The motion filter: a scan that is no new view is dead-reckoned.
   if (!take && motion_filter_ && prior && motion_prior_.with_odometry()) {
@@ -48,15 +48,14 @@ RegisteredScan FrontEnd::register_scan(const LaserScan& scan, bool take) {
   //    when the motion did more than it holds (Q is singular only for a
   //    standing robot with zero noise floors: no prior, no registration);
   //    its covariance with the point noise measured so far (stage 5).
-  if (matching_.range_noise_from_residuals) {
-    if (const std::optional<double> per_m = range_noise_.range_noise_per_m()) matching_.range_noise_per_m = *per_m;
-  }
   if (prior && matching_.enabled && !local_submap_.empty()) {
     out.registration_tried = true;
     if (Eigen::LLT<Eigen::Matrix3d>(prior->motion.Q).info() == Eigen::Success) {
-      points = scan_points_by_kind(scan, matching_);
+      ScanMatcherConfig matching = matching_;
+      matching.range_noise_per_m = range_noise_per_m();
+      points = scan_points_by_kind(scan, matching);
       Registration registration = register_escalating(local_submap_.reference(), points,
-                                                      prior->motion.u, prior->motion.Q, matching_);
+                                                      prior->motion.u, prior->motion.Q, matching);
       out.registration = std::move(registration.match);
       out.search_escalated = registration.search_escalated;
       out.match_from_escalation = registration.match_from_escalation;
@@ -93,6 +92,13 @@ RegisteredScan FrontEnd::register_scan(const LaserScan& scan, bool take) {
     local_submap_.add(scan, out.motion ? out.motion->u : Pose2(), connected);
   }
   return out;
+}
+
+double FrontEnd::range_noise_per_m() const {
+  if (matching_.range_noise_from_residuals) {
+    if (const std::optional<double> measured = range_noise_.range_noise_per_m()) return *measured;
+  }
+  return matching_.range_noise_per_m;
 }
 
 std::optional<MotionIncrement> FrontEnd::odometry_step(int64_t utime, const Pose2& odometry) {

@@ -79,7 +79,7 @@ class FrontEnd {
   const RangeNoiseEstimate& range_noise() const { return range_noise_; }
   // The point noise's range-proportional part the registration uses now, and
   // whether it was measured (range_noise_estimate.hpp) or is the configured one.
-  double range_noise_per_m() const { return matching_.range_noise_per_m; }
+  double range_noise_per_m() const;
   bool range_noise_measured() const { return range_noise_.range_noise_per_m().has_value(); }
 
  private:

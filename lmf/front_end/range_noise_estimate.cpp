@@ -8,17 +8,9 @@
 
 #include <Eigen/Geometry>
 
+#include "lmf/common/median.hpp"
+
 namespace lmf {
-namespace {
-
-// The middle element (the upper one of an even count) of non-empty values.
-double median(std::vector<double> values) {
-  const auto mid = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-  std::nth_element(values.begin(), mid, values.end());
-  return *mid;
-}
-
-}  // namespace
 
 std::optional<double> range_noise_evidence(const ReferenceScan& A, const std::vector<Eigen::Vector2d>& B,
                                            const Pose2& x, const ScanMatcherConfig& config) {

@@ -2,18 +2,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 #include <numbers>
 #include <sstream>
 #include <stdexcept>
 
+#include "lmf/common/median.hpp"
+
 namespace lmf::io {
 namespace {
-
-double median(std::vector<double> values) {
-  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-  std::nth_element(values.begin(), middle, values.end());
-  return *middle;
-}
 
 std::string describe(const Pose2& x) {
   std::ostringstream out;

@@ -2,8 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 #include <cstdio>
 #include <unordered_map>
+
+#include "lmf/common/median.hpp"
 
 namespace lmf::io {
 
@@ -32,9 +35,7 @@ NoReturnReading find_no_return_reading(const std::vector<LaserScan>& scans,
     for (const double r : readings) ++scans_holding[r];
   }
   if (medians.empty()) return out;
-  const auto middle = medians.begin() + static_cast<std::ptrdiff_t>(medians.size() / 2);
-  std::nth_element(medians.begin(), middle, medians.end());
-  out.median_reading_m = *middle;
+  out.median_reading_m = median(std::move(medians));
   // The largest reading enough scans touch.
   const double needed = std::max(static_cast<double>(ceiling.min_scans_touching),
                                  ceiling.min_share_touching * static_cast<double>(out.scans));

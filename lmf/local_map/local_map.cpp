@@ -189,9 +189,7 @@ ScanReport LocalMap::process_scan(const LaserScan& scan) { return process(scan, 
 
 std::optional<ScanReport> LocalMap::take_skipped_scan() {
   if (!last_scan_skipped_) return std::nullopt;
-  const LaserScan scan = std::move(*last_scan_skipped_);
-  last_scan_skipped_.reset();
-  motion_to_skipped_.reset();
+  const LaserScan scan = std::move(*last_scan_skipped_);  // update_with clears the skip state
   scan_poses_.pop_back();  // its dead-reckoned pose; the update gives it its own
   return process(scan, true);
 }
